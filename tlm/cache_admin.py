@@ -16,7 +16,7 @@ An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` wit
 and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``), and ``references/<key>.partial.npz``, the rounds saved of a reference being computed or
 interrupted (:mod:`tlm.experiments.reference_resume`: an entry of its own, which a prune may remove as
-any other; the compute that wrote it writes it again after its next cycle);
+any other; the compute that wrote it writes it again at its next save);
 ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be written) a
 kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not

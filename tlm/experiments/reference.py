@@ -292,7 +292,8 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
         relative standard error is below the tolerance (``rse 0.0412, stop < 0.03``).
     key : the reference's key (:func:`reference_key`), for a caller that stores it
         (:func:`~tlm.experiments.reference_cache.store_reference`, which then removes its saved rounds):
-        its rounds are saved after each cycle, and the rounds saved by an interrupted compute of the key
+        its rounds are saved at the end of a cycle (:meth:`~tlm.experiments.reference_resume.Partial.save`:
+        each, or one a minute where large), and the rounds saved by an interrupted compute of the key
         resumed from, to the same result (:mod:`tlm.experiments.reference_resume`; ``say``: called with
         the line that says so, or why not; ``meta`` then says ``resumed_from_round``, and its
         ``host_seconds`` add the earlier ones). None: nothing saved nor resumed.

@@ -17,7 +17,7 @@ the temporary folder (:func:`kept_root`, ``<tmp>/tlm-cache-<uid>/references/<key
 folder is made for this user alone, and one made by someone else first (a link, another
 user's folder, one others may write) is not written into (:func:`private_folder`).
 
-A reference computed by ``tlm run`` or ``tlm reference`` saves its rounds after each finished cycle
+A reference computed by ``tlm run`` or ``tlm reference`` saves its rounds at the end of its cycles
 beside its entry, ``references/<key>.partial.npz`` (:func:`partial_path`;
 :mod:`tlm.experiments.reference_resume`), so that one interrupted resumes from there; the file is removed
 once the reference is stored, or could not be (:func:`drop_partial`), and ``tlm cache`` lists and prunes
@@ -280,10 +280,11 @@ class Stored:
 
 
 PARTIAL = ".partial.npz"  # references/<key>.partial.npz: the rounds of a reference interrupted
+PARTIAL_VERSION = 1  # the layout of a .partial.npz (tlm.experiments.reference_resume)
 
 
 def partial_path(key: str) -> Path:
-    """Where the rounds of a compute of reference ``key`` are saved after each finished cycle, beside its
+    """Where the rounds of a compute of reference ``key`` are saved at the end of its cycles, beside its
     entry (:mod:`tlm.experiments.reference_resume`): ``references/<key>.partial.npz``."""
     return cache_dir() / f"{key}{PARTIAL}"
 
@@ -300,13 +301,16 @@ def partial_info(path: Path) -> dict | None:
 
 def drop_partial(key: str, meta: dict) -> None:
     """Remove the saved rounds of a compute of ``key`` (:func:`partial_path`), the reference of ``meta``
-    being stored; but for rounds that went further, in cycles as long (``rounds_per_cycle``), than its
-    ``cycles``: another compute's, to a stricter tolerance, interrupted, which a later one resumes."""
+    being stored; but for more rounds than its ``rounds`` (in cycles of any length, either engine's): another
+    compute's, to a stricter tolerance or of another ``reference.spp``, interrupted, which a later one
+    resumes; and for rounds of another layout (``version``: another tlm's, older or newer, which that tlm
+    resumes)."""
     path = partial_path(key)
     info = partial_info(path)
-    k, cycles = (info or {}).get("k"), meta.get("cycles")
-    if (info is not None and info.get("strata") == meta.get("rounds_per_cycle") and isinstance(k, int)
-            and isinstance(cycles, int) and k > cycles):
+    k, strata, rounds = (info or {}).get("k"), (info or {}).get("strata"), meta.get("rounds")
+    if type(k) is int and type(strata) is int and type(rounds) is int and k * strata > rounds:
+        return
+    if info is not None and type(info.get("version")) is int and info["version"] != PARTIAL_VERSION:
         return
     with contextlib.suppress(OSError):
         path.unlink()

@@ -5,21 +5,32 @@ large scene. Its rounds come in cycles whose seeds do not depend on the stopping
 same length is the same whatever the tolerance and ``min_rounds``/``max_rounds``), and its running state
 after a cycle is small: the cycles finished, the running mean and Welford's ``m2`` (float64, per pixel),
 the change and relative standard error of each cycle, and the host seconds so far. :class:`Partial` saves
-that state after each cycle but the last, atomically (:func:`tlm.storage.write_atomic`: a temporary file
+that state at the end of a cycle (not the last), atomically (:func:`tlm.storage.write_atomic`: a temporary file
 of this process's own, renamed into place), in the cache beside the entry it becomes,
 ``references/<key>.partial.npz`` (:func:`~tlm.experiments.reference_cache.partial_path`; float64 stored
 exactly), and the next compute of the key resumes from it, to the same bits as a compute never
 interrupted: the same image, the same ``meta.json`` but for ``host_seconds`` (the earlier seconds added)
-and ``resumed_from_round`` (the rounds it did not compute again).
+and ``resumed_from_round`` (the rounds it did not compute again). A save is 48 bytes a pixel (100 MB at
+1080p, about 0.5 s): one of more than :data:`SMALL_SAVE` bytes is made at the end of the first cycle that
+ends :data:`SAVE_SECONDS` or more after the last save (or the compute's start), not after every cycle (a
+1080p cycle of 1000 photons, k 8, one round: 5.4 s, its save 9% of it); a smaller one after every cycle.
+An interrupt loses the rounds since the last save, at most about :data:`SAVE_SECONDS` and a cycle.
+A folder with too little space for a save (``shutil.disk_usage``) is said in one line, once, and looked
+at again at the next save's time (no save tried there: a failed one would say the cache cannot be written,
+though its reference, a quarter of the size, may fit).
 
 Rounds saved under another stopping rule are resumed where the rule asked for now would not have stopped
 before them; rounds past the point where it stops (more cycles than its ``max_rounds`` allows, or a cycle
 before the last saved one that meets its tolerance) are not resumed (the compute starts from round 1 and
 stops where that rule stops it: they are kept for a later compute that goes further), nor those of cycles
-of another length (``reference.spp``) or of the other engine (``TLM_KERNELS``): a line says why. (Not
+of another length (``reference.spp``) or of the other engine (``TLM_KERNELS``): a line says why (this
+compute's first save replaces them; one that saves none, shorter than :data:`SAVE_SECONDS` with large
+saves, leaves them where they hold more rounds than it: :func:`~tlm.experiments.reference_cache.drop_partial`). (Not
 checked: that tlm's code is the one that saved them, as a cached reference is not: a change of the code
 that changes a reference changes its key, :data:`~tlm.experiments.reference.KEY_VERSION`.) A damaged
-file, or one of another key, is said in one line, removed and computed again. The saved rounds are
+file, or one of another key, is said in one line, removed and computed again; one of another layout
+(:data:`PARTIAL_VERSION`: an older or newer tlm's) is said in one line and left for that tlm (this compute's
+own saves replace it, as they replace rounds of cycles of another length). The saved rounds are
 removed once the compute finished and its reference is stored, or could not be
 (:func:`~tlm.experiments.reference_cache.drop_partial`; a compute that no caller stores, ``key`` None,
 saves none).
@@ -36,19 +47,22 @@ written): none are kept in the temporary folder, where the reference itself may 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
+import shutil
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from tlm.errors import EnvironmentFailure, InputError
-from tlm.experiments.reference_cache import partial_info, partial_path
+from tlm.experiments.reference_cache import PARTIAL_VERSION, partial_info, partial_path
 from tlm.kernels.engine import engine
 from tlm.storage import pid_alive, process_tag, warn, write_atomic
 
-PARTIAL_VERSION = 1  # the layout of a .partial.npz
+SAVE_SECONDS = 60.0  # a save of more than SMALL_SAVE bytes waits this long after the last one (or the start)
+SMALL_SAVE = 4 << 20  # bytes (320 x 240 pixels: 3.7 MB, a few ms): saved after every cycle
+_now = time.monotonic  # (the clock of the saves' times)
 
 
 @dataclass
@@ -67,6 +81,10 @@ class Rounds:
 
 class _Damaged(Exception):
     """A saved file that is no reference's rounds, or another key's (its message: why)."""
+
+
+class _OtherLayout(Exception):
+    """A saved file of another layout than :data:`PARTIAL_VERSION` (another tlm's; its message: the layout)."""
 
 
 def stops_at(errors: list[float], k: int, min_cycles: int, max_cycles: int, tolerance: float) -> int | None:
@@ -99,6 +117,8 @@ class Partial:
         self.path = partial_path(key)
         self.kind = {"version": PARTIAL_VERSION, "key": key, "strata": strata, "engine": engine()}
         self.off = False  # (a save failed: the cache cannot be written; no more tries)
+        self.last = _now()  # (the last save's time, or the compute's start: SAVE_SECONDS)
+        self.short = False  # (a folder too full for a save was said)
 
     def _tell(self, line: str, warning: bool = False) -> None:
         if self.say is not None:
@@ -117,10 +137,20 @@ class Partial:
         try:
             info, rounds = self._read()
         except _Damaged as e:
-            self._tell(f"reference {self.key}: the rounds saved of a reference interrupted earlier, {self.path}, "
-                       f"are ignored and removed ({e}): it is computed from round 1", warning=True)
-            with contextlib.suppress(OSError):
+            try:
                 self.path.unlink()
+                gone = "are ignored and removed"
+            except FileNotFoundError:  # (removed meanwhile: a prune, another process)
+                gone = "are ignored and removed"
+            except OSError as err:  # (a read-only cache: said again by the next compute, which cannot resume either)
+                gone = f"are ignored (and cannot be removed: {(err.strerror or str(err)).lower()})"
+            self._tell(f"reference {self.key}: the rounds saved of a reference interrupted earlier, {self.path}, "
+                       f"{gone} ({e}): it is computed from round 1", warning=True)
+            return None
+        except _OtherLayout as e:
+            self._tell(f"reference {self.key}: not resuming from the rounds saved in {self.path}, of layout {e} "
+                       f"(another tlm's; this one reads layout {PARTIAL_VERSION}): they are left for it, and this "
+                       "reference is computed from round 1, its own rounds saved in their place")
             return None
         done = rounds.k * info["strata"]
         why = self._why_not(info, rounds, min_cycles, max_cycles, tolerance)
@@ -147,13 +177,19 @@ class Partial:
 
     def _read(self) -> tuple[dict, Rounds]:
         try:
+            with open(self.path, "rb") as fh:
+                if fh.read(4) != b"PK\x03\x04":  # (np.load would read it as a pickle, and say "allow_pickle")
+                    raise _Damaged("it is no .npz file")
             with np.load(self.path, allow_pickle=False) as z:
+                info = json.loads(str(z["info"][()])) if "info" in z.files else None
+                version = info.get("version") if isinstance(info, dict) else None
+                if type(version) is int and version != PARTIAL_VERSION:  # (its arrays may be others: not read)
+                    raise _OtherLayout(version)
                 missing = {"info", "mean", "m2", "changes", "errors"} - set(z.files)
                 if missing:
                     raise _Damaged(f"it has no {', '.join(sorted(missing))}")
-                info = json.loads(str(z["info"][()]))
                 mean, m2, changes, errors = (z[n] for n in ("mean", "m2", "changes", "errors"))
-        except _Damaged:
+        except (_Damaged, _OtherLayout):
             raise
         except Exception as e:  # (not an .npz, cut short, a folder: whatever numpy, zipfile or json say)
             raise _Damaged(f"it cannot be read: {' '.join(str(e).split()) or type(e).__name__}") from None
@@ -180,9 +216,16 @@ class Partial:
         return info, Rounds(k, mean, m2, [float(x) for x in changes], [float(x) for x in errors], float(seconds))
 
     def save(self, rounds: Rounds) -> None:
-        """Save ``rounds`` (atomically), but where the file holds as many cycles or more of the same kind
-        (another process ahead on the same key), or a save failed before (the cache cannot be written)."""
+        """Save ``rounds`` (atomically), the state at the end of a cycle; but where it is more than
+        :data:`SMALL_SAVE` bytes and the last save (or the compute's start) is less than :data:`SAVE_SECONDS`
+        ago, where the file holds as many cycles or more of the same kind (another process ahead on the same
+        key), where its folder has too little space left (said once), or where a save failed before (the cache
+        cannot be written)."""
         if self.off:
+            return
+        size = rounds.mean.nbytes + rounds.m2.nbytes + 16 * (len(rounds.errors) + 64)  # (+ headers, roughly)
+        now = _now()
+        if size > SMALL_SAVE and now - self.last < SAVE_SECONDS:
             return
         info = partial_info(self.path)
         if (info is not None and all(info.get(f) == v for f, v in self.kind.items())
@@ -191,6 +234,19 @@ class Partial:
         head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": process_tag()})
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            free = shutil.disk_usage(self.path.parent).free
+        except OSError:  # (a cache that cannot be written: its one line, tlm.caches)
+            self.off = True
+            return
+        if free < size:
+            self.last = now
+            if not self.short:
+                self.short = True
+                self._tell(f"reference {self.key}: its rounds are not saved for a resume: {self.path.parent} has "
+                           f"{free / 1e6:.1f} MB free, a save takes {size / 1e6:.1f} MB (looked at again every "
+                           f"{SAVE_SECONDS:.0f} s; an interrupt loses the rounds since the last save)", warning=True)
+            return
+        try:
             with write_atomic(self.path, "wb") as fh:
                 np.savez(fh, info=np.array(head), mean=np.asarray(rounds.mean, dtype=np.float64),
                          m2=np.asarray(rounds.m2, dtype=np.float64),
@@ -198,3 +254,5 @@ class Partial:
                          errors=np.asarray(rounds.errors, dtype=np.float64).reshape(-1))
         except (OSError, EnvironmentFailure, InputError):  # (the cache's one line says it cannot be written)
             self.off = True
+        else:
+            self.last = _now()
