@@ -21,7 +21,8 @@ import pytest
 
 from tlm import storage
 from tlm.experiments.thesis_setting import scene_keys
-from tlm.storage import LISTING, atomic_folder
+from tlm.storage import atomic_folder
+from tlm.storage_carry import LISTING
 
 
 def _output(out: Path, files: dict[str, str], owned=("m", "images", "aov", "report")) -> None:

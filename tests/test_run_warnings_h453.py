@@ -30,7 +30,7 @@ from tlm.experiments.run_warnings import (
 TINY = {"mode": "pmap", "resolution": [8, 8], "render.spp": 1, "render.light_samples": 1,
         "photons.count": 2000, "reference.k_nearest": 20, "reference.spp": 1, "reference.min_rounds": 2,
         "reference.max_rounds": 4, "arch.packet_size": 16, "arch.frames": 2}
-BLUR = "measures mostly the reference's blur"
+BLUR = "measure the reference's blur more"
 
 
 def _blur(lines: list[str]) -> list[str]:
@@ -44,10 +44,10 @@ def test_a_run_past_the_ratio_warns_and_one_at_it_does_not(tmp_path, cache):
     assert error["available"] and past["photons"]["emitted"] == 2000
     assert _blur(past["warnings"]) == [
         f"the photon-map frame emits 2000 photons, 5.00x the 400 a round of its reference {error['reference']} "
-        "(reference.photons): each round's k-NN estimate (20 photons) spans a much wider kernel than this run's, "
-        "so the pmap error against it (error.rmse, error.rel_mse) measures mostly the reference's blur, not this "
-        "run's noise; raise reference.photons to 500 or more (at most 4x fewer than the run's) and compute it "
-        "again with 'tlm reference'"]
+        "(reference.photons): each round's k-NN estimate (20 photons) gathers over a wider area than this run's "
+        "gathers, so the pmap error against it (error.rmse, error.rel_mse) may measure the reference's blur more "
+        "than this run's noise; raise reference.photons to 500 or more (at most 4x fewer than the run's) and "
+        "compute it again with 'tlm reference'"]
     assert json.loads((tmp_path / "p" / "results.json").read_text())["warnings"] == past["warnings"]
     at = tlm.run(tlm.load_config("cornell", {**TINY, "reference.photons": 500}), tmp_path / "a", outputs="images")
     assert at["error"]["available"] and _blur(at["warnings"]) == []
@@ -101,7 +101,8 @@ def _line(gaps: list[int]) -> str:
             f"({gaps[0]} and {gaps[1]} cycles; timing.frame_times): the 2 images in flight take turns, and "
             "cycles.throughput and fps are the mean over the period, which a small change of the work (a few pixels "
             "more, another render.spp) can move by more than the work changed, even the other way (the turns "
-            "change); compare runs by more than that, or with arch.images_in_flight = 1 (each frame alone, no turns)")
+            "change); treat differences between runs smaller than that as noise, or compare with "
+            "arch.images_in_flight = 1 (each frame alone, no turns)")
 
 
 def test_a_period_whose_gaps_differ_is_warned_of(tmp_path, cache):

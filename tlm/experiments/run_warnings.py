@@ -26,7 +26,7 @@ from tlm.config_words import sets_nothing
 from tlm.experiments.study import override_key, set_leaves
 from tlm.registry import SCHEDULERS
 from tlm.render import checks
-from tlm.render.planner import inert_changes, inert_timing_settings, walk_inert_settings
+from tlm.render.planner import inert_changes, inert_timing_settings, uses_radius, walk_inert_settings
 
 # RenderResult (tlm.experiments.run, which imports this module) is named in annotations only and not
 # imported: an import, even under TYPE_CHECKING, would make the two modules a cycle (tests/test_layers.py)
@@ -207,8 +207,8 @@ def period_warnings(timing: Timing, images_in_flight: int) -> list[str]:
             f"cycles.throughput ({shown} cycles; timing.frame_times): the {images_in_flight} images in flight "
             "take turns, and cycles.throughput and fps are the mean over the period, which a small change of the "
             "work (a few pixels more, another render.spp) can move by more than the work changed, even the other "
-            "way (the turns change); compare runs by more than that, or with arch.images_in_flight = 1 (each "
-            "frame alone, no turns)"]
+            "way (the turns change); treat differences between runs smaller than that as noise, or compare with "
+            "arch.images_in_flight = 1 (each frame alone, no turns)"]
 
 
 def inert_timing_changes(timing: Timing, cfg: RunConfig) -> dict[str, str]:
@@ -544,8 +544,9 @@ def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | None, scene
     run's ``emitted`` by more than :data:`BLUR_RATIO` times: each of its rounds is a k-NN estimate whose
     kernel holds ``reference.k_nearest`` photons of a map that much sparser, so it converges to an image
     much blurrier than the run's; the error (``error.rmse``, ``error.rel_mse``) then measures mostly that
-    blur, not the run's noise. It names both counts and the key to raise."""
-    if not (error and error.get("available")) or emitted is None:
+    blur, not the run's noise. It names both counts and the key to raise. None where no kernel of the run follows its
+    photons' density (:func:`_kernels_fixed`): its photons then make none of its kernels narrower (h457)."""
+    if not (error and error.get("available")) or emitted is None or _kernels_fixed(cfg):
         return []
     given = cfg.reference.photons
     ref = scene_photons if given is None else given
@@ -554,10 +555,22 @@ def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | None, scene
     whose = "reference.photons" if given is not None else "reference.photons null: the scene's photons"
     return [f"the photon-map frame emits {emitted} photons, {emitted / ref:.2f}x the {ref} a round of its "
             f"reference {error['reference']} ({whose}): each round's k-NN estimate ({cfg.reference.k_nearest} "
-            "photons) spans a much wider kernel than this run's, so the pmap error against it (error.rmse, "
-            "error.rel_mse) measures mostly the reference's blur, not this run's noise; raise reference.photons "
+            "photons) gathers over a wider area than this run's gathers, so the pmap error against it (error.rmse, "
+            "error.rel_mse) may measure the reference's blur more than this run's noise; raise reference.photons "
             f"to {-(-emitted // BLUR_RATIO)} or more (at most {BLUR_RATIO}x fewer than the run's) and compute it "
             "again with 'tlm reference'"]
+
+
+def _kernels_fixed(cfg: RunConfig) -> bool:
+    """Whether every gather of the run is within a radius its config fixes (``estimate.radius`` or ``radius_fraction``,
+    ``caustic_radius`` or ``caustic_radius_fraction``; a filter of a radius; no final gathering, whose global map is
+    gathered at ``final_gather_photons``' density): more photons make none of its kernels narrower, and how the
+    reference's k-NN kernel compares with them its photons alone do not tell (h457: a fixed radius_fraction 0.02 run
+    of 5x the reference's photons can be the blurrier)."""
+    est = cfg.estimate
+    return (uses_radius(est.filter) and getattr(est, "final_gather", 0) == 0
+            and (est.radius is not None or est.radius_fraction is not None)
+            and (est.caustic_radius is not None or est.caustic_radius_fraction is not None))
 
 
 def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = None) -> list[str]:

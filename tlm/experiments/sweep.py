@@ -89,6 +89,7 @@ from typing import Any
 from tlm import claims, storage
 from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held
 from tlm.errors import EnvironmentFailure, InputError, interrupted_by
+from tlm.experiments import sweep_rows as _kept  # (what an interrupted sweep's line says it kept)
 from tlm.experiments.dask_workers import machine_lines
 from tlm.experiments.executors import (
     DASK_POLL,
@@ -130,7 +131,6 @@ from tlm.experiments.sweep_reference import (
     unmeasured_line,
 )
 from tlm.experiments.sweep_rows import columns, forget_worker_events, keep_worker_events, point_row, write_rows
-from tlm.experiments.sweep_rows import note_kept as _note_kept
 from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -277,7 +277,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     points_dir = out / "points"
     hold: dict[str, Held] = {}  # the references the points are measured against, which the sweep holds
     if reference:  # (before the points are read: one done without an error is measured now)
-        failed_refs = sweep_references(sweep, points_dir, say, progress, hold)
+        with _kept.noting_kept(lambda: _kept.rows_kept(out, fkeys), len(sweep.points)):  # (an earlier run's rows)
+            failed_refs = sweep_references(sweep, points_dir, say, progress, hold)
         said += failed_refs
         for line in failed_refs if warn is not None else ():
             warn(line)
@@ -374,39 +375,41 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
                 _clean_stale(points_dir)
-            kept = [records[p.hash] for p in sweep.points if p.hash in records]  # (those done before: not claimed yet)
-            if rows_due:  # the rows of the points done, as a run to its end writes them
+            if not rows_due:  # (before the folder was claimed: the rows an earlier run kept there, failed ones too)
+                kept = _kept.rows_kept(out, fkeys)
+            else:  # the rows of the points done, as a run to its end writes them
                 kept = _write_finished(out, sweep, records, todo)
                 with suppress(Exception):  # (what stopped the sweep is said, not a failed write of these)
                     if not workers_kept:  # (an interrupt while the executor closed: the events written already)
                         _keep_workers(out, pool, records, sweep.identity())
-            _note_kept(e, kept, len(sweep.points))  # (an interrupt's line says them: tlm.cli_report.sweep_cut_short)
+            _kept.note_kept(e, kept, len(sweep.points))  # (an interrupt's line says them: cli_report.sweep_cut_short)
             raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
         rows = [_row(p, records[p.hash], sweep) for p in sweep.points]
         _write_rows(out, rows, sweep.factors)
-    computed = [r for r in rows if r["hash"] in tasks]
-    failed = sum(r["status"] != "ok" for r in computed)
-    renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
-    unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
-                                   if records[p.hash]["status"] == "ok"])
-    unread += unmeasured_line(sweep, records, out, reference)
-    with cache_warnings_held():  # (the caches as they are now, said below through warn: a line a point of this
-        # process met, held, reaches warn too)
-        caches = _cache_lines([records[h] for h in tasks], cache_warnings())
-    # (a given render.threads past a Dask machine's CPUs at its points at once, or a remote one's alone: once per
-    # machine, as its points said it)
-    machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
-    other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
-    stale = [other_folders_line(other, points_dir)] if other else []
-    if warn is not None:
-        for line in [*machines, *unread, *caches, *stale]:
-            if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)
-                warn(line)
-    return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
-                   [*said, *machines, *unread, *caches, *stale], other)
+    with _kept.noting_kept(lambda: rows, len(rows)):  # (an interrupt now: every row written, the line says them)
+        computed = [r for r in rows if r["hash"] in tasks]
+        failed = sum(r["status"] != "ok" for r in computed)
+        renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
+        unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
+                                       if records[p.hash]["status"] == "ok"])
+        unread += unmeasured_line(sweep, records, out, reference)
+        with cache_warnings_held():  # (the caches as they are now, said below through warn: a line a point of this
+            # process met, held, reaches warn too)
+            caches = _cache_lines([records[h] for h in tasks], cache_warnings())
+        # (a given render.threads past a Dask machine's CPUs at its points at once, or a remote one's alone: once per
+        # machine, as its points said it)
+        machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
+        other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
+        stale = [other_folders_line(other, points_dir)] if other else []
+        if warn is not None:
+            for line in [*machines, *unread, *caches, *stale]:
+                if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)
+                    warn(line)
+        return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
+                       [*said, *machines, *unread, *caches, *stale], other)
 
 
 def checked_options(jobs: int | None, dask: str | None,

@@ -13,7 +13,8 @@ with an ok point's columns whatever the points' outcome (:func:`columns`), and a
 value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
 (:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``), and a path of bytes not UTF-8 in a cell
 (a failed point's error naming its folder ``run_\\xff``) with the byte escaped, ``\\xff`` (:func:`csv_cell`).
-A sweep interrupted notes on its interrupt how many of its points' rows its folder keeps (:func:`note_kept`).
+A sweep interrupted notes on its interrupt how many of its points' rows its folder keeps (:func:`note_kept`,
+:func:`noting_kept`; before it claimed the folder, an earlier run's rows: :func:`rows_kept`).
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ import io
 import json
 import math
 import re
-from collections.abc import Iterable
-from contextlib import suppress
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -306,3 +307,33 @@ def note_kept(e: BaseException, records: list[dict] | None, total: int) -> None:
         return
     with suppress(AttributeError, TypeError):  # (an exception that takes no attribute: its line is the bare one)
         setattr(e, KEPT, (len(records), sum(r.get("status") != "ok" for r in records), total))
+
+
+@contextmanager
+def noting_kept(records: Callable[[], list[dict] | None], total: int) -> Iterator[None]:
+    """:func:`note_kept` on an interrupt of the block, ``records()`` its rows' records, asked then: a sweep's stage
+    outside its points' (its ``--reference`` step, before them: the rows an earlier run kept, :func:`rows_kept`; its
+    summary after its rows are written: those rows), whose line says them too, not a bare ``tlm: interrupted``."""
+    try:
+        yield
+    except BaseException as e:
+        with suppress(Exception):  # (what stopped the sweep goes on whatever: its line the bare one)
+            note_kept(e, records(), total)
+        raise
+
+
+def rows_kept(out: Path, hashes: Iterable[str]) -> list[dict]:
+    """The rows of ``out``'s ``sweep.jsonl`` of a sweep's points (their ``hashes``), one per row, failed ones too: what
+    the folder keeps of them before the sweep claimed it (an earlier run's, which a rerun into it goes on from; a
+    line cut off, one not JSON and another sweep's point's left out); none where there is no such file."""
+    try:
+        text = (out / "sweep.jsonl").read_text(encoding="utf-8", errors="replace")
+    except (OSError, ValueError):
+        return []
+    wanted, kept = set(hashes), []
+    for line in text.splitlines(keepends=True):
+        with suppress(ValueError):
+            row = json.loads(line) if line.endswith("\n") else None
+            if isinstance(row, dict) and row.get("hash") in wanted:
+                kept.append(row)
+    return kept
