@@ -78,7 +78,7 @@ def test_a_signal_after_every_row_is_written_says_so(tmp_path, monkeypatch, caps
     _signal_in(monkeypatch, "other_folders")  # (the sweep's summary, after its rows)
     assert _sweep(path, out) == 130
     assert tlm_lines(capsys.readouterr().err, out, 3) == [
-        f"tlm: interrupted with 3 of 3 points finished and kept in {out}; run the same command to go on"]
+        f"tlm: interrupted with all 3 points finished and kept in {out}"]
 
 
 # (B) a granularity study of a photon-map frame whose reference has 5x fewer photons a round

@@ -28,6 +28,8 @@ from tlm.experiments.loading import load_frame
 from tlm.experiments.reference_cache import ReferenceSettings, drop_partial, partial_info, partial_path
 from tlm.experiments.reference_resume import Partial, Rounds
 
+from .test_reference_resume_h454 import _rounds as _interrupt_at  # (reference_round counted, interrupted at a call)
+
 # cycles of 2 rounds, at most 6 of them; a tolerance no cycle meets: all 12 rounds
 REF = {"photons": 500, "k_nearest": 8, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 12, "spp": 2}
 CONFIG = {"scene": "cornell", "mode": "pmap", "resolution": [4, 4], "reference": REF}
@@ -37,19 +39,6 @@ def _frame():
     frame = load_frame(config_from_dict(CONFIG))
     settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
     return frame, settings, reference.reference_key(frame.scene, frame.cfg, settings)
-
-
-def _interrupt_at(monkeypatch, at: int | None) -> list[int]:
-    real, calls = reference.reference_round, []
-
-    def counted(*a, **k):
-        calls.append(1)
-        if len(calls) == at:
-            raise KeyboardInterrupt
-        return real(*a, **k)
-
-    monkeypatch.setattr(reference, "reference_round", counted)
-    return calls
 
 
 def test_a_large_save_waits_save_seconds_and_the_resume_gives_the_same_bits(cache, tmp_path, monkeypatch):

@@ -174,8 +174,10 @@ def rows(out: Path) -> list[dict]:
 
 # tlm's lines of a signalled sweep: the first signal's, which says how many of its points the folder keeps
 # (h450: a bare "tlm: interrupted" before), and a second's; nothing else (no traceback, no resource tracker's)
-TLM_LINE = re.compile(r"tlm: (?:interrupted|terminated \(SIGTERM\))(?: with (\d+) of (\d+) points finished"
-                      r"(?: \((\d+) failed, to run again\))? and kept in (.+); run the same command to go on"
+TLM_LINE = re.compile(r"tlm: (?:interrupted|terminated \(SIGTERM\))(?: with (?P<kept>\d+) of (?P<total>\d+) points "
+                      r"finished(?: \((?P<failed>\d+) failed, to run again\))? and kept in (?P<folder>.+); "
+                      r"run the same command to go on"
+                      r"| with all (?P<all>\d+) points finished and kept in (?P<all_folder>.+)"
                       r"| before any point finished)?|tlm: interrupted again: stopping now")
 
 
@@ -185,10 +187,13 @@ def tlm_lines(err: str, out: Path, n: int) -> list[str]:
     lines = err.strip().splitlines()
     assert lines and len(lines) <= 2 and all(TLM_LINE.fullmatch(line) for line in lines), err
     for line in lines:
-        kept, total, failed, folder = TLM_LINE.fullmatch(line).groups()
-        if kept is not None:
-            assert (int(kept), int(total), int(failed or 0), folder) == (
+        said = TLM_LINE.fullmatch(line).groupdict()
+        if said["kept"] is not None:
+            assert (int(said["kept"]), int(said["total"]), int(said["failed"] or 0), said["folder"]) == (
                 len(rows(out)), n, sum(r["status"] != "ok" for r in rows(out)), str(out)), (line, len(rows(out)))
+        elif said["all"] is not None:  # (every point finished, none failed: nothing to go on with)
+            assert (int(said["all"]), said["all_folder"]) == (len(rows(out)), str(out)) and int(said["all"]) == n
+            assert all(r["status"] == "ok" for r in rows(out)), line
         elif "before any point finished" in line:
             assert rows(out) == [], line
     return lines

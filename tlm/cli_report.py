@@ -93,6 +93,8 @@ def sweep_cut_short(out: Path) -> Iterator[None]:
         rows, failed, total = kept
         if not rows:
             raise Interrupted("before any point finished") from e
+        if rows >= total and not failed:  # (every row written: nothing to go on with)
+            raise Interrupted(f"with all {total} points finished and kept in {path_shown(out)}") from e
         of = f" ({failed} failed, to run again)" if failed else ""
         raise Interrupted(f"with {rows} of {total} points finished{of} and kept in {path_shown(out)}; "
                           "run the same command to go on") from e

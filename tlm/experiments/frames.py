@@ -471,7 +471,7 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
               ) -> CachedRender | None:
     """``got`` with its photon-map frame's ``error`` measured now: the image (``pmap()``) against the
     reference of ``cfg`` cached now, as :func:`tlm.experiments.run.photon_error` measures it (the
-    reference's stopping rule ``cfg``'s), and the line on a reference not converged among its
+    reference's stopping rule ``cfg``'s), and the lines on a reference not converged or blurrier (h453) among its
     warnings. The reference's key is the one the frame was rendered with where ``cfg`` asks the same
     reference photons and ``k_nearest`` (the rest of that key is the frame's: scene, camera, the
     photons' bounces and the specular walks'), else computed from the scene (loaded where the key

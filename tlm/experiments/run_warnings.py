@@ -526,9 +526,10 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
             *blur]
 
 
-# the run's photons a round past this many times its reference's: the run's k-NN kernel is so much narrower
-# that its error against the reference measures mostly the reference's blur (h453: configs/cornell-water.yaml 4.17x,
-# configs/ring.yaml with --mode pmap 15x, the other committed configs 1x; a reference's cost grows with its photons)
+# the run's photons a round past this many times its reference's: the run's k-NN kernel is so much narrower that
+# its error against the reference may measure the reference's blur more than its noise (h453:
+# configs/cornell-water.yaml 4.17x, configs/ring.yaml with --mode pmap 15x, the other committed configs 1x; a
+# reference's cost grows with its photons)
 BLUR_RATIO = 4
 
 
@@ -543,8 +544,8 @@ def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | None, scene
     whose photons a round (``reference.photons``, null: the scene's ``scene_photons``) are fewer than the
     run's ``emitted`` by more than :data:`BLUR_RATIO` times: each of its rounds is a k-NN estimate whose
     kernel holds ``reference.k_nearest`` photons of a map that much sparser, so it converges to an image
-    much blurrier than the run's; the error (``error.rmse``, ``error.rel_mse``) then measures mostly that
-    blur, not the run's noise. It names both counts and the key to raise. None where no kernel of the run follows its
+    blurrier than the run's; the error (``error.rmse``, ``error.rel_mse``) then may measure that blur more
+    than the run's noise (h457). It names both counts and the key to raise. None where no kernel of the run follows its
     photons' density (:func:`_kernels_fixed`): its photons then make none of its kernels narrower (h457)."""
     if not (error and error.get("available")) or emitted is None or _kernels_fixed(cfg):
         return []

@@ -325,15 +325,16 @@ def noting_kept(records: Callable[[], list[dict] | None], total: int) -> Iterato
 def rows_kept(out: Path, hashes: Iterable[str]) -> list[dict]:
     """The rows of ``out``'s ``sweep.jsonl`` of a sweep's points (their ``hashes``), one per row, failed ones too: what
     the folder keeps of them before the sweep claimed it (an earlier run's, which a rerun into it goes on from; a
-    line cut off, one not JSON and another sweep's point's left out); none where there is no such file."""
+    line cut off, one not JSON and another sweep's point's left out; a point's later row in place of its earlier,
+    which a killed rerun appended after: one row per point); none where there is no such file."""
     try:
         text = (out / "sweep.jsonl").read_text(encoding="utf-8", errors="replace")
     except (OSError, ValueError):
         return []
-    wanted, kept = set(hashes), []
+    wanted, kept = set(hashes), {}
     for line in text.splitlines(keepends=True):
         with suppress(ValueError):
             row = json.loads(line) if line.endswith("\n") else None
-            if isinstance(row, dict) and row.get("hash") in wanted:
-                kept.append(row)
-    return kept
+            if isinstance(row, dict) and isinstance(row.get("hash"), str) and row["hash"] in wanted:
+                kept[row["hash"]] = row
+    return list(kept.values())
