@@ -61,8 +61,8 @@ def test_error_vs_cost_says_it_computes_a_reference_none_cached_before_it_does(t
     assert main(["error-vs-cost", str(_study(tmp_path)), "--out", str(out), "--truth-spp", "0", "--no-report"]) == 0
     (before,) = said
     key = json.loads((out / "reference.json").read_text())["key"]
-    assert (f"error-vs-cost: computing the photon-map reference {key} (none cached): 800 photons and k = 20 per "
-            "round, until the relative standard error is below 1e-06 (at most 2 rounds)") in before
+    assert (f"error-vs-cost: computing the photon-map reference {key} (no finished one cached): 800 photons and "
+            "k = 20 per round, until the relative standard error is below 1e-06 (at most 2 rounds)") in before
     assert main(["error-vs-cost", str(_study(tmp_path)), "--out", str(out), "--truth-spp", "0", "--no-report"]) == 0
     assert "computing" not in capsys.readouterr().out  # (cached now: nothing computed, nothing said)
     assert len(said) == 1

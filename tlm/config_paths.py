@@ -160,7 +160,7 @@ def _given_as(target: str, name: str, folders: list[Path] | tuple[Path, ...]) ->
     ``room.yaml``, in one of ``folders`` or the working folder) whichever way it is read: as a config's ``scene:``
     (looked for in ``folders``, then the working folder) and as ``--set scene=`` (the working folder first, then
     beside the config). ``./room.yaml`` where it does; else the file's path from the first of ``folders`` or
-    from the working folder (``../room.yaml``, ``cfg/room.yaml``), the shorter that does; else its whole path. A
+    from the working folder (``../room.yaml``, ``cfg/room.yaml``) or its whole path, the shortest that does. A
     run config ``configs/room.yaml`` beside ``configs/cornell.yaml`` made ``./room.yaml`` that config (h438)."""
     cwd = os.getcwd()
     orders = ([*map(os.fspath, folders), cwd], [cwd, *map(os.fspath, folders)])
@@ -175,7 +175,7 @@ def _given_as(target: str, name: str, folders: list[Path] | tuple[Path, ...]) ->
         return f"./{name}"
     paths = (os.path.relpath(target, start) for start in (*map(os.fspath, folders[:1]), cwd))
     named = [p for p in (p if os.sep in p else f"./{p}" for p in paths) if names_it(p)]
-    return min(named, key=len) if named else target
+    return min([*named, target], key=len)  # (a path climbing to / from both: the whole path, shorter, h460)
 
 
 def _same_file(a: str, b: Path) -> bool:

@@ -239,7 +239,7 @@ def computing_line(key: str, settings: ReferenceSettings, cached_for: str, uncac
     """The line said before a reference none cached is computed (the rounds may take minutes);
     ``cached_for``: what it is then cached for, and how to skip it; ``uncached``: what becomes of it
     instead where the cache cannot be written (:func:`~tlm.caches.cache_problem`), said with why."""
-    line = (f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
+    line = (f"computing the photon-map reference {key} (no finished one cached): {settings.photons} photons and "
             f"k = {settings.k_nearest} per round, until the relative standard error is below "
             f"{settings.tolerance} (at most {settings.max_rounds} rounds); ")
     why = cache_problem(cache_dir())

@@ -57,6 +57,7 @@ class Reference:
     key: str
     points: int
     action: str
+    saved: int = 0  # rounds saved by an interrupted compute of it (references/<key>.partial.npz), which it resumes
 
     @property
     def computed(self) -> bool:
@@ -93,7 +94,7 @@ class SweepPlan:
     def record(self) -> dict[str, Any]:
         """The plan as JSON-able values (``tlm sweep --dry-run --json``)."""
         refs = None if self.references is None else [
-            {"key": r.key, "points": r.points, "action": r.action} for r in self.references]
+            {"key": r.key, "points": r.points, "action": r.action, "saved_rounds": r.saved} for r in self.references]
         return {"dry_run": True, "sweep": str(self.path), "out": str(self.out), "points": self.points,
                 "done": self.done, "to_run": self.to_run, "measured_again": self.measured_again,
                 "frames": self.frames, "frames_cached": self.frames_cached, "renders": self.renders,
@@ -128,7 +129,9 @@ class SweepPlan:
                          "the pass)" if not self.references else
                          f"  --reference: {n(len(computed), 'reference')} to compute, "
                          f"{len(self.references) - len(computed)} cached")
-            lines += [f"    {r.key}: {r.action} ({n(r.points, 'point')})" for r in self.references]
+            lines += [f"    {r.key}: {r.action} ({n(r.points, 'point')}"
+                      + (f"; {n(r.saved, 'round')} saved by an interrupted compute, resumed where these settings "
+                         "allow" if r.saved else "") + ")" for r in self.references]
         if self.stale:
             what = "folder or file" if self.stale == 1 else "folders or files"
             lines.append(f"  {self.stale} temporary {what} of killed sweeps in {self.out}: removed")
@@ -253,8 +256,18 @@ def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Ref
             again |= {h for h, why in measure.items() if why != "run"}
         hashes = measure if kind == "compute" else unmeasured
         points = sum(1 for p in sweep.points if p.hash in hashes)
-        refs.append(Reference(key, points, action))
+        refs.append(Reference(key, points, action, _saved_rounds(key) if action.startswith("compute") else 0))
     return refs, again, []
+
+
+def _saved_rounds(key: str) -> int:
+    """The rounds an interrupted compute of reference ``key`` saved (its ``.partial.npz``'s header), which the
+    next compute resumes from (a dry run said 'compute' alone, h460); 0 where none are saved or readable."""
+    from tlm.experiments.reference_cache import partial_info, partial_path
+
+    info = partial_info(partial_path(key)) or {}
+    k, strata = info.get("k"), info.get("strata")
+    return k * strata if type(k) is int and type(strata) is int and k > 0 and strata > 0 else 0
 
 
 def _cached_meta(key: str) -> dict | None:
