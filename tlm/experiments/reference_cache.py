@@ -299,6 +299,13 @@ def partial_info(path: Path) -> dict | None:
     return info if isinstance(info, dict) else None
 
 
+def partial_rounds(info: dict | None) -> int:
+    """The rounds that saved rounds' header ``info`` (:func:`partial_info`) says they hold: its cycles times its
+    rounds a cycle; 0 where it says no whole positive numbers (none, or a damaged header)."""
+    k, strata = (info or {}).get("k"), (info or {}).get("strata")
+    return k * strata if type(k) is int and type(strata) is int and k > 0 and strata > 0 else 0
+
+
 def drop_partial(key: str, meta: dict) -> None:
     """Remove the saved rounds of a compute of ``key`` (:func:`partial_path`), the reference of ``meta``
     being stored; but for more rounds than its ``rounds`` (in cycles of any length, either engine's): another
@@ -307,8 +314,8 @@ def drop_partial(key: str, meta: dict) -> None:
     resumes)."""
     path = partial_path(key)
     info = partial_info(path)
-    k, strata, rounds = (info or {}).get("k"), (info or {}).get("strata"), meta.get("rounds")
-    if type(k) is int and type(strata) is int and type(rounds) is int and k * strata > rounds:
+    rounds = meta.get("rounds")
+    if type(rounds) is int and partial_rounds(info) > rounds:
         return
     if info is not None and type(info.get("version")) is int and info["version"] != PARTIAL_VERSION:
         return

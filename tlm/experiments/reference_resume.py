@@ -137,11 +137,11 @@ class Partial:
         try:
             info, rounds = self._read()
         except _Damaged as e:
+            gone = "are ignored and removed"
             try:
                 self.path.unlink()
-                gone = "are ignored and removed"
             except FileNotFoundError:  # (removed meanwhile: a prune, another process)
-                gone = "are ignored and removed"
+                pass
             except OSError as err:  # (a read-only cache: said again by the next compute, which cannot resume either)
                 gone = f"are ignored (and cannot be removed: {(err.strerror or str(err)).lower()})"
             self._tell(f"reference {self.key}: the rounds saved of a reference interrupted earlier, {self.path}, "

@@ -263,11 +263,9 @@ def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Ref
 def _saved_rounds(key: str) -> int:
     """The rounds an interrupted compute of reference ``key`` saved (its ``.partial.npz``'s header), which the
     next compute resumes from (a dry run said 'compute' alone, h460); 0 where none are saved or readable."""
-    from tlm.experiments.reference_cache import partial_info, partial_path
+    from tlm.experiments.reference_cache import partial_info, partial_path, partial_rounds
 
-    info = partial_info(partial_path(key)) or {}
-    k, strata = info.get("k"), info.get("strata")
-    return k * strata if type(k) is int and type(strata) is int and k > 0 and strata > 0 else 0
+    return partial_rounds(partial_info(partial_path(key)))
 
 
 def _cached_meta(key: str) -> dict | None:
