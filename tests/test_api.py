@@ -220,8 +220,8 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     value writer (tlm.config_words.flow_text: a default as tlm reads it back)."""
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
-    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache", "tlm.cli_run",
-                              "tlm.cli_tables"}, used - allowed
+    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_failed", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache",
+                              "tlm.cli_run", "tlm.cli_tables"}, used - allowed
     running = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_run.py")}  # (what tlm run prints, out of cli.py)
     assert running <= allowed - {"tlm.experiments.thesis"}, running - allowed
     caching = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_cache.py")}  # (tlm cache: the caches' folder alone)
@@ -230,6 +230,8 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     assert report <= (allowed - {"tlm.experiments.thesis"}) | {"tlm.cli_signals"}, report - allowed
     ending = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_signals.py")}
     assert ending <= (allowed - {"tlm.experiments.thesis"}) | {"tlm.cli_streams"}, ending - allowed
+    failing = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_failed.py")}  # (out of cli_signals)
+    assert failing <= (allowed - {"tlm.experiments.thesis"}) | {"tlm.cli_signals", "tlm.cli_streams"}, failing
     streams = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_streams.py")}  # (imported before the early signals)
     assert streams == set(), streams
     arguments = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_args.py")}

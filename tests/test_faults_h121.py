@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tlm import cli_signals, cli_streams
+from tlm import cli_failed, cli_streams
 from tlm.cli import main
 
 from .test_faults import CORNELL, SMALL, leftovers
@@ -61,7 +61,7 @@ def _hidden(folder: Path) -> list[str]:
 
 def test_a_memory_error_is_out_of_memory_on_one_line(capsys):
     e = MemoryError("Unable to allocate 8.24 MiB for an array with shape (1080000,) and data type float64")
-    assert cli_signals.exit_status(e, ["run"]) == 1
+    assert cli_failed.exit_status(e, ["run"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("tlm: error: out of memory: Unable to allocate 8.24 MiB for an array")
     assert "internal" not in err
@@ -72,14 +72,14 @@ def test_a_memory_error_is_out_of_memory_on_one_line(capsys):
         except MemoryError as inner:
             raise SystemError("<built-in function x> returned a result with an exception set") from inner
     except SystemError as wrapped:
-        assert cli_signals.exit_status(wrapped, ["run"]) == 1
+        assert cli_failed.exit_status(wrapped, ["run"]) == 1
     assert capsys.readouterr().err.startswith("tlm: error: out of memory")
 
 
 def test_a_broken_pipe_not_of_stdout_or_stderr_is_not_a_reader_gone(capsys, monkeypatch):
     """(A worker's pipe: an error of its own, with its traceback kept, not a quiet 141.)"""
     monkeypatch.setattr(cli_streams, "_reader_gone", lambda fd: False)
-    assert cli_signals.exit_status(BrokenPipeError(32, "Broken pipe"), ["run"]) == 1
+    assert cli_failed.exit_status(BrokenPipeError(32, "Broken pipe"), ["run"]) == 1
     assert "BrokenPipeError" in capsys.readouterr().err
 
 

@@ -25,14 +25,14 @@ import textwrap
 import numpy as np
 import pytest
 
-from tlm import cli_signals, cli_streams, errors
+from tlm import cli_failed, cli_signals, cli_streams, errors
 from tlm.kernels import shade
 from tlm.scenes.loader import load_scene
 
 
 def test_a_thread_the_system_refused_is_one_line_naming_the_limits(capsys, monkeypatch):
     monkeypatch.setattr(errors, "address_space_limit", lambda: 400 * 2**20)
-    assert cli_signals.exit_status(RuntimeError("can't start new thread"), ["run"]) == 1
+    assert cli_failed.exit_status(RuntimeError("can't start new thread"), ["run"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("tlm: error: no new thread could be started: can't start new thread (")
     assert "limited to 400 MiB: ulimit -v" in err and "internal" not in err and len(err.splitlines()) == 1
@@ -42,7 +42,7 @@ def test_a_thread_the_system_refused_is_one_line_naming_the_limits(capsys, monke
         except RuntimeError as inner:
             raise OSError("the pool could not start") from inner
     except OSError as wrapped:
-        assert cli_signals.exit_status(wrapped, ["run"]) == 1
+        assert cli_failed.exit_status(wrapped, ["run"]) == 1
     assert capsys.readouterr().err.startswith("tlm: error: no new thread could be started")
     # another RuntimeError is still a bug: its traceback kept
     assert errors.thread_problem(RuntimeError("can't start a car")) is None
@@ -61,7 +61,7 @@ def test_a_library_not_mapped_under_a_limit_is_out_of_memory(capsys, monkeypatch
     monkeypatch.setattr(errors, "address_space_limit", lambda: None)
     assert errors.memory_problem(e) is None  # (no limit set: not memory, as far as tlm can tell)
     monkeypatch.setattr(errors, "address_space_limit", lambda: 600 * 2**20)
-    assert cli_signals.exit_status(e, ["run"]) == 1
+    assert cli_failed.exit_status(e, ["run"]) == 1
     err = capsys.readouterr().err
     assert err == ("tlm: error: out of memory: libXau-154567c4.so.6.0.0: failed to map segment from shared object "
                    "(the address space of this process is limited to 600 MiB: ulimit -v)\n")

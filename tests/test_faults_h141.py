@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tlm import cli, cli_signals, errors
+from tlm import cli, cli_failed, cli_signals, errors
 from tlm.cli import main
 
 from .test_faults import CORNELL, SMALL
@@ -132,12 +132,12 @@ def test_memory_that_runs_out_as_an_error_is_said_is_one_line(monkeypatch, capfd
 
     monkeypatch.setattr(cli_signals, "save_traceback", no_memory)
     monkeypatch.setattr(errors, "address_space_limit", lambda: 400 * 2**20)
-    assert cli_signals.exit_status(SystemError("error return without exception set"), ["run"]) == 1
+    assert cli_failed.exit_status(SystemError("error return without exception set"), ["run"]) == 1
     assert capfd.readouterr().err == (
         "tlm: error: out of memory (the address space of this process is limited to 400 MiB: ulimit -v), as the "
         "command ended with SystemError: error return without exception set\n")
     monkeypatch.setattr(cli_signals, "_line", no_memory)  # (not even that line: the shortest, to stderr's fd)
-    assert cli_signals.exit_status(errors.InputError("bad"), ["run"]) == 1
+    assert cli_failed.exit_status(errors.InputError("bad"), ["run"]) == 1
     assert capfd.readouterr().err == "tlm: error: out of memory\n"
 
 

@@ -40,7 +40,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
      "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)
      "tlm.cli", "tlm.cli_args",
-     "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_streams", "tlm.cli_cache",
+     "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_failed", "tlm.cli_streams", "tlm.cli_cache",
      "tlm.cli_tables", "tlm.__main__", "tlm"),
 )
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from tlm import cli_signals, config
+from tlm import cli_failed, cli_signals, config
 from tlm.cli import main
 from tlm.errors import InputError
 
@@ -54,7 +54,7 @@ def test_errors_in_one_second_get_a_traceback_file_each_in_the_cache(cache, monk
     assert [p.name for p in saved] == [f"{stem}.txt", f"{stem}-2.txt", f"{stem}-3.txt"]
     assert [f"RuntimeError: error number {i}" in p.read_text() for i, p in enumerate(saved)] == [True] * 3
     # the command's line names the file written
-    assert cli_signals._failed(ValueError("one more"), ["run"]) == 1
+    assert cli_failed._failed(ValueError("one more"), ["run"]) == 1
     line = capsys.readouterr().err
     named = Path(line.split("full traceback in ", 1)[1].rstrip(")\n"))
     assert named == folder / f"{stem}-4.txt" and "ValueError: one more" in named.read_text()

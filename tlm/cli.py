@@ -20,13 +20,12 @@ from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_args import experiment_argument as _experiment_file
 from tlm.cli_cache import add_cache_parser, cache_command
+from tlm.cli_failed import deadlock_line, exit_status
 from tlm.cli_report import kept_whole, report_after, report_claimed, say_err, study_claimed, sweep_cut_short
 from tlm.cli_run import blame_flag, default_out, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
-    deadlock_line,
     escaped,
-    exit_status,
     forget_lost_interrupt,
     interrupted,
     signalled,

@@ -100,7 +100,7 @@ def cache_command(args: argparse.Namespace) -> int:
         outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
                            dry_run=args.dry_run)
     except KeyboardInterrupt as e:  # (Ctrl-C, SIGTERM: still 130 / 143, its line saying what went by then: the
-        # rest of it, as tlm.cli_signals.Interrupted's ``kept``, which tlm.cli_signals.exit_status reads)
+        # rest of it, as tlm.cli_signals.Interrupted's ``kept``, which tlm.cli_failed.exit_status reads)
         if not args.dry_run and getattr(e, "kept", None) is None:
             done = e.removed if isinstance(e, ca.RemovalInterrupted) else []  # (none: before the removal began)
             e.kept = (f"while {'clearing' if clear else 'pruning'} the cache: removed {_count(done)} "

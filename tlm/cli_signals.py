@@ -2,9 +2,9 @@
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
 status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
-naming each blocked unit) ends with its message on one line, cut to a few hundred characters
-(the whole message in the traceback file it names: :func:`deadlock_line`), and exit status 1, and so does a failure
-of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
+naming each blocked unit) ends with its message on one line, cut to a few hundred characters (the
+whole message in the traceback file it names: :func:`tlm.cli_failed.deadlock_line`), and exit status 1,
+and so does a failure of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
 Ctrl-C (SIGINT) exits with 130, SIGTERM with 143 and SIGHUP (a terminal closed) with 129, after the
 command removed what it had half written (a signal the process inherited ignored stays ignored); a
 second signal during that clean-up ends the process at once, with one line of its own (and none from
@@ -125,7 +125,7 @@ def one_blas_thread() -> None:
     allocation failed, and OpenBLAS retried it for ever (a hang that ignored SIGTERM) or ended the
     process with its own line (``OpenBLAS error: Memory allocation still failed ...``, exit 1). With
     one thread an allocation that fails is a MemoryError, said as ``tlm: error: out of memory: ...``
-    (:func:`_failed`). Inherited by the command's workers (a sweep's)."""
+    (:func:`tlm.cli_failed.exit_status`). Inherited by the command's workers (a sweep's)."""
     os.environ.setdefault(BLAS_THREADS, "1")
 
 
@@ -145,7 +145,7 @@ def blas_buffer_mapped() -> None:
     as its library is loaded, and where it cannot, retries for ever (a hang that SIGTERM does not end):
     here its library is loaded first (:func:`_scipy_blas`). :data:`BLAS_ROOM` is mapped and unmapped
     before either, and where it cannot be the command ends as out of memory (a MemoryError: ``tlm: error:
-    out of memory: ...``, :func:`_failed`), before any work. A few milliseconds, numpy imported."""
+    out of memory: ...``, :func:`tlm.cli_failed.exit_status`), before any work. A few milliseconds, numpy imported."""
     import mmap
 
     import numpy as np
@@ -189,25 +189,15 @@ import time
 import traceback
 import weakref
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from tlm import progress
 from tlm.errors import (
-    ERROR_CHARS,
-    InputError,
     environment_problem,
-    error_line,
     escaped_line,
     forget_landed,
-    interrupted_by,
-    memory_problem,
     signal_landed,
     surrogates_escaped,
-    thread_problem,
 )
-
-if TYPE_CHECKING:  # (imported where used: tlm.api is the heavy part of a command's imports, see early_signals)
-    from tlm.api import Deadlock
 
 _BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
 _EXIT: list[int] = []  # the exit status of the process's own command, once it ended (until_exit)
@@ -281,7 +271,7 @@ def signals():
     begins stays ignored (``nohup`` ignores SIGHUP, a shell's background job ``&`` SIGINT: the
     command is meant to outlive them). A reader of stdout or stderr that goes away stops nothing
     (:func:`tlm.cli_streams.guard_streams`, in the main thread): the command runs to its end, and where it was
-    stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`_failed`)."""
+    stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`tlm.cli_failed.exit_status`)."""
     early = any(signal.getsignal(s) is _early_signal for s in TAKEN)
     if not early:  # (else the signal the early handler noted, if one came, is this command's)
         _SIGNALS.clear()
@@ -574,7 +564,7 @@ def _others_once() -> bool:
 def _flushed(status: int) -> int:
     """``status`` once stdout and stderr are flushed (what the interpreter's exit would do,
     left out by :func:`_end`): 141 where the reader of stdout went away (as for ``tlm params |
-    head -1``, :func:`exit_status`), 1 with its line where it could not be written (a full disk)."""
+    head -1``, :func:`tlm.cli_failed.exit_status`), 1 with its line where it could not be written (a full disk)."""
     if cli_streams._GONE.get("stdout") and status == 0:  # (its reader went away during the command: guard_streams)
         status = 128 + signal.SIGPIPE
     streams = [sys.stdout, sys.__stdout__, sys.stderr, sys.__stderr__]
@@ -631,67 +621,3 @@ def line_break(sig: int) -> str:
     if any((bar := ref()) is None or bar.disable for ref in _BARS):  # (one collected was closed by its __del__)
         return ""
     return "\n" if sig == signal.SIGINT else ""
-
-
-def deadlock_line(e: Deadlock) -> str:
-    """A model that could not finish, on one line (``tlm: deadlock: ...``; a cap hit,
-    :class:`MaxEventsReached`, said as such): its blocked units bounded to a few hundred
-    characters (10 KB at 64 pipelines), the whole message kept in the traceback file the line
-    names (:func:`save_traceback`; where none can be written, the line says so)."""
-    from tlm.api import MaxEventsReached
-
-    text = one_line(e)
-    if len(text) > ERROR_CHARS:
-        kept = save_traceback(e)
-        text = error_line(text, "no file could be written" if kept is None else str(kept))
-    return f"tlm: {text}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {text}"
-
-
-def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
-    """The exit status of a command that raised ``e``, once its one line is on stderr
-    (``argv``: the command's, None for the process's own). The process's own command that failed
-    (exit status 1 or 2) is ended as one that returned is: a signal until the process exits
-    says that the command ran to its end and the exit status is 128 + it (:func:`until_exit`)."""
-    try:
-        status = _failed(e, argv)
-    except MemoryError:  # (under ``ulimit -v``, too little left even to say it: the shortest line, no traceback)
-        with suppress(OSError):
-            os.write(2, b"tlm: error: out of memory\n")
-        status = 1
-    return until_exit(status) if argv is None else status
-
-
-def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
-    """:func:`exit_status`, but for a signal until the process exits."""
-    from tlm.api import Deadlock
-
-    if isinstance(e, InputError):
-        _line(f"tlm: error: {one_line(e)}")
-        return 2
-    if isinstance(e, Deadlock):  # the model could not finish: nothing is written, no partial numbers
-        _line(deadlock_line(e))
-        return 1
-    if isinstance(e, KeyboardInterrupt):
-        return interrupted(argv, kept=getattr(e, "kept", None))
-    broken = cli_streams._broken_streams() if isinstance(e, BrokenPipeError) else []
-    if broken:  # the reader of stdout (or stderr) went away (``| head``): nothing more to say
-        for name in broken:  # so that the exit's flush does not fail again
-            with suppress(Exception):
-                cli_streams._to_devnull(getattr(sys, name).fileno())
-        return 128 + signal.SIGPIPE
-    if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError; inside
-        # a C extension's call into Python, one that made it an error of its own: nanobind's TypeError)
-        return interrupted(argv)
-    what = environment_problem(e) or memory_problem(e) or thread_problem(e)
-    if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory, no thread
-        _line(f"tlm: error: {escaped(what)}")  # (a path of the user's in it: its control characters escaped)
-        return 1
-    try:
-        saved = save_traceback(e)
-    except MemoryError as m:  # (under ``ulimit -v``: the traceback's text, tlm's version read from its metadata)
-        _line(f"tlm: error: {memory_problem(m)}, as the command ended with {type(e).__name__}: {one_line(e)}")
-        return 1
-    where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
-    _line(f"tlm: internal error: {type(e).__name__}: {one_line(e)} ({where})")
-    return 1
-

@@ -214,6 +214,6 @@ def _reader_gone(fd: int) -> bool:
 def _broken_streams() -> list[str]:
     """Of stdout and stderr, those whose reader went away (noted by :class:`_Guarded`, or said by
     the kernel of file descriptors 1 and 2): a BrokenPipeError that reached the command line is
-    theirs; one of another pipe (a worker's) is an error of its own (:func:`tlm.cli_signals._failed`)."""
+    theirs; one of another pipe (a worker's) is an error of its own (:func:`tlm.cli_failed.exit_status`)."""
     return [name for name, fd in (("stdout", 1), ("stderr", 2)) if _GONE.get(name) or _reader_gone(fd)]
 

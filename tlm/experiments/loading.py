@@ -45,7 +45,7 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)
     with timer.stage("build_bsp"):
         accel = accel_for(scene.triangles, cfg.bsp.levels, cfg.bsp.memory_factor)
-    return Frame.create(scene, accel, cfg, tables.result())
+    return Frame.create(scene, accel, cfg, threads.result(tables))
 
 
 _LAST_ACCEL: list = []  # [(levels, memory_factor, accel)]: the last BSP this process built (one: its memory)

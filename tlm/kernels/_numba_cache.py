@@ -174,10 +174,12 @@ def _damage_safe(load):
     the function's index and data files removed (:func:`_drop_damaged`), and None, so that
     numba compiles it again and writes a new entry. Other files' entries: numba's own load.
     An error of a numba left half imported (:func:`_half_imported`: ``module 'numba' has no attribute
-    'core'``, as its contexts are refreshed or its data unpickled) where the files' bytes read whole
-    (:func:`_bytes_whole`), and one a signal's handler raised during the load, or one that came of it
-    (:func:`tlm.whole_imports.raised_by_handler`: a timeout's, a Ctrl-C's; not one the load began in the
-    ``except`` block of, a timeout caught before a retry), are raised, no file removed;
+    'core'``, as its contexts are refreshed or its data unpickled) and a MemoryError (the process out of
+    memory: under ``ulimit -v``, ``Out of memory interning an attribute name``) where the files' bytes read
+    whole (:func:`_bytes_whole`; a MemoryError reading them is raised too), and one a signal's handler
+    raised during the load, or one that came of it (:func:`tlm.whole_imports.raised_by_handler`: a
+    timeout's, a Ctrl-C's; not one the load began in the ``except`` block of, a timeout caught before a
+    retry), are raised, no file removed;
     any other error (``LLVM bitcode parsing error``: a file's bytes zeroed inside the compiled code it holds,
     which its pickle reads whole) is the files'."""
 
@@ -192,6 +194,8 @@ def _damage_safe(load):
                 raise
             if raised_by_handler(e, handled) or (_half_imported(e) and _bytes_whole(self._cache_file)):
                 raise  # (not the files': an interrupt, a timeout's raise; a half-imported numba)
+            if isinstance(e, MemoryError) and _bytes_whole(self._cache_file):
+                raise  # (the process's memory, not the files': under ``ulimit -v`` a load can fail so)
             _drop_damaged(self, sig, target_context, e)
             return None
 
@@ -269,6 +273,8 @@ def _bytes_whole(cache_file) -> bool:
                     return False
     except FileNotFoundError:  # (removed meanwhile, by another process: nothing damaged here)
         return True
+    except MemoryError:  # (too little memory to read them: nothing known of the files, so nothing damaged)
+        raise
     except Exception:
         return False
     return True

@@ -462,7 +462,7 @@ def trace_photons(
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
         return work, stored, full, pairs
 
-    prepared.result()
+    threads.result(prepared)
     spans = photon_spans(n, max_bounces, batch_rays)
     # (on one thread the chunks run in order, each charged to the pairs as it comes)
     concurrent = len(spans) > 1 and threads.current() > 1

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import itertools
+import logging
 import os
 import signal
 import sys
@@ -214,7 +215,40 @@ def _pool(n: int) -> ThreadPoolExecutor:
         pool = _POOLS.get(n)
         if pool is None:
             pool = _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"{_POOL_THREADS}{n}")
+            if _LOST_FILTER not in _FUTURES_LOG.filters:
+                _FUTURES_LOG.addFilter(_LOST_FILTER)
         return pool
+
+
+_LOST: list[BaseException] = []  # what ended a worker of the pools (a MemoryError as its call's outcome was set)
+
+
+def _lost(record: logging.LogRecord) -> bool:
+    """concurrent.futures' "Exception in worker" of a pool's thread (its traceback, printed on
+    stderr): kept for :func:`result` to raise, not printed. Others' records pass."""
+    if record.threadName.startswith(_POOL_THREADS) and record.exc_info and record.exc_info[1] is not None:
+        _LOST.append(record.exc_info[1])
+        return False
+    return True
+
+
+_FUTURES_LOG = logging.getLogger("concurrent.futures")
+_LOST_FILTER = _lost
+
+
+def result(future: Future):
+    """``future.result()`` of a call submitted to the pools, or, where the worker thread running it
+    ended without setting its outcome (concurrent.futures ends a worker whose call's outcome could
+    not be set: a MemoryError under ``ulimit -v``), the error that ended it, rather than a wait for
+    ever. The wait is checked every half second."""
+    while True:
+        try:
+            return future.result(timeout=0.5)
+        except TimeoutError:
+            ran = getattr(future, "_tlm_thread", ())
+            if ran and not ran[0].is_alive() and not future.done():
+                raise (_LOST.pop() if _LOST else RuntimeError(f"the kernel thread {ran[0].name} ended without "
+                                                              "finishing its call")) from None
 
 
 _POOL_THREADS = "tlm-kernel-"  # the start of the pools' threads' names
@@ -226,17 +260,20 @@ def _submit(pool: ThreadPoolExecutor, fn: Callable, *args) -> Future:
     global _BUSY
     with _POOLS_LOCK:
         _BUSY += 1
+        ran: list[threading.Thread] = []  # (the worker thread that runs it: result)
         try:
-            future = pool.submit(_counted, fn, *args)
+            future = pool.submit(_counted, ran, fn, *args)
         except BaseException:  # (refused, "cannot schedule new futures after shutdown": no call in flight)
             _BUSY -= 1
             raise
+    future._tlm_thread = ran
     future.add_done_callback(_uncount_cancelled)
     return future
 
 
-def _counted(fn: Callable, *args):
+def _counted(ran: list, fn: Callable, *args):
     global _BUSY
+    ran.append(threading.current_thread())
     try:
         return fn(*args)
     finally:  # (before the future is done: a caller that took every result sees no call in flight)
@@ -303,7 +340,7 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
                 nxt += 1
             future, w = pending.pop(0)
             held -= w
-            yield future.result()
+            yield result(future)
     finally:  # an error, Ctrl-C or a caller that stops: what has not started never runs
         for f, _ in pending:
             f.cancel()
