@@ -33,6 +33,11 @@ def _files(folder: Path) -> dict[str, str]:
             if p.is_file() and p.name != LISTING}
 
 
+def _listed(out: Path) -> set[str]:
+    """The paths ``out``'s listing names (a file's line: its path, then its size and time, a tab before each)."""
+    return {line.split("\t")[0] for line in (out / LISTING).read_text().splitlines()}
+
+
 def _output(out: Path, files: dict[str, str], owned=("m", "images", "aov")) -> None:
     """An output of ``files`` (``m``, the marker, among them) written into ``out`` by :func:`atomic_folder`."""
     with atomic_folder(out, "m", owned=owned) as tmp:
@@ -51,7 +56,7 @@ def test_a_rerun_of_tlm_run_keeps_the_user_s_files_in_its_subfolders(tmp_path, c
     (out / "aov" / "mine.txt").write_text("mine")
     (out / "radiance" / "notes.md").write_text("mine")
     shutil.copy2(out / "images" / "rcast.png", out / "images" / "rcast_copy.png")  # (cp -p: tlm's mtime)
-    (out / "images" / "composite.png").write_text("mine")  # (a name the run writes: the run's)
+    (out / "images" / "composite.png").write_text("mine")  # (a path the run writes: the run's, said)
     assert main([*RUN, "--out", str(out), "--outputs", "images"]) == 0
     assert (out / "images" / "my_annotated.png").read_text() == "mine"
     assert (out / "images" / "analysis" / "fit.py").read_text() == "mine"
@@ -68,8 +73,8 @@ def test_the_listing_not_the_file_s_dates_tells_the_user_s_files(tmp_path):
     writes one is the new output's, and a folder of the user's where the new output writes a file goes too."""
     out = tmp_path / "o"
     _output(out, {"m": "1", "images/a.png": "1", "images/old.png": "1", "aov/w.npz": "1", "images/d/x": "1"})
-    assert set((out / LISTING).read_text().split()) == {"m", "images", "images/a.png", "images/old.png", "aov",
-                                                        "aov/w.npz", "images/d", "images/d/x"}
+    assert _listed(out) == {"m", "images", "images/a.png", "images/old.png", "aov", "aov/w.npz", "images/d",
+                            "images/d/x"}
     for rel in ("images/mine.png", "images/a.png", "aov/mine.txt", "images/d/mine", "images/sub/deep/y"):
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         (out / rel).write_text("mine")
@@ -80,11 +85,14 @@ def test_the_listing_not_the_file_s_dates_tells_the_user_s_files(tmp_path):
     assert _files(out) == {"m": "2", "images/a.png": "2", "images/b": "2", "images/mine.png": "mine",
                            "images/old_copy.png": "1", "aov/mine.txt": "mine", "images/d/mine": "mine",
                            "images/sub/deep/y": "mine"}
-    assert set((out / LISTING).read_text().split()) == {"m", "images", "images/a.png", "images/b"}
-    # an output with no listing (an older tlm's): its folders are replaced whole, as before
+    assert _listed(out) == {"m", "images", "images/a.png", "images/b"}
+    # an output with no listing (deleted, an older tlm's): what the new output writes is its, the rest is kept
+    # (h464: it was replaced whole, the user's files with it), and said
     (out / LISTING).unlink()
     _output(out, {"m": "3", "images/a.png": "3"})
-    assert _files(out) == {"m": "3", "images/a.png": "3"}
+    assert _files(out) == {"m": "3", "images/a.png": "3", "images/b": "2", "images/mine.png": "mine",
+                           "images/old_copy.png": "1", "aov/mine.txt": "mine", "images/d/mine": "mine",
+                           "images/sub/deep/y": "mine"}
 
 
 def test_a_rerun_that_fails_leaves_the_user_s_files_where_they_were(tmp_path, monkeypatch):

@@ -78,7 +78,7 @@ def test_a_user_s_path_the_new_output_writes_itself_is_said(tmp_path, capsys):
     assert _files(out) == {"m": "2", "images/a": "2", "images/x/f": "2", "images/y": "2", "images/pmap.png": "2",
                            "images/keep.png": "mine"}
     (line,) = [x for x in capsys.readouterr().err.splitlines() if "yours" in x]
-    assert "'images/pmap.png', 'images/x', 'images/y'" in line and "replaced by this output's own" in line
+    assert "'images/pmap.png', 'images/x' and 'images/y'" in line and "replaced by this output's own" in line
     assert str(out) in line
     _output(out, {"m": "3", "images/a": "3"})  # (nothing of the user's taken: nothing said)
     assert "yours" not in capsys.readouterr().err
@@ -93,7 +93,8 @@ def test_a_user_s_folder_of_a_name_the_new_output_also_writes_is_merged(tmp_path
     _output(out, {"m": "2", "bunny/cycles.csv": "2", "bunny/run/results.json": "2"}, owned=("m",))
     assert _files(out) == {"m": "2", "bunny/notes.md": "mine", "bunny/cycles.csv": "2",
                            "bunny/run/results.json": "2"}
-    assert "'bunny/cycles.csv' (not written by the earlier output: yours) was replaced" in capsys.readouterr().err
+    assert ("'bunny/cycles.csv' (yours: not written by the earlier output, or changed since) was replaced"
+            in capsys.readouterr().err)
 
 
 def test_a_signal_as_the_user_s_files_go_back_keeps_them(tmp_path, monkeypatch, capsys):

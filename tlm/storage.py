@@ -65,7 +65,7 @@ from typing import IO, cast
 
 from tlm import storage_live, storage_lock
 from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
-from tlm.storage_carry import LISTING, carry_over, lost_line, put_back, write_listing  # noqa: F401  (LISTING: storage's)
+from tlm.storage_carry import LISTING, carry_over, lost_line, put_back, unlisted_line, write_listing  # noqa: F401
 from tlm.storage_errors import raise_environmental as _raise_environmental
 from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
 from tlm.storage_files import write_files as _write_files
@@ -353,6 +353,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
     leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
     moved: list[str] = []  # (the user's paths carried into tmp, until they are back or tmp took out's place)
     lost: list[str] = []  # (the user's paths that the new output's own take: said once it took out's place)
+    unlisted: list[str] = []  # (the paths kept from the own folders of an out with no listing: said so too)
     new: os.stat_result | None = None  # (tmp's, to tell whether it took out's place)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -390,7 +391,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
             swapping = False
             try:
                 if owned is not None and out.is_dir():
-                    carry_over(out, tmp, owned, moved, lost)
+                    unlisted = carry_over(out, tmp, owned, moved, lost)
                 swapping = True
                 _swap_in(tmp, out, writer)
             except BaseException as e:  # (the user's files go back where they were)
@@ -418,6 +419,8 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
             moved.clear()
         if lost:
             warn(lost_line(out, lost))
+        if unlisted:
+            warn(unlisted_line(out, unlisted))
     except BaseException as e:
         if moved and not (new is not None and storage_lock.is_at(out, new)):  # (a signal as they went back: the
             leave = True  # temporary folder holds some, never removed, said)

@@ -2,13 +2,19 @@
 :func:`~tlm.storage.atomic_folder` calls it under the folder's lock, before the swap).
 
 An output that keeps what its user put in its folder (a run's, a study's: ``owned``, the names it may hold) lists
-every path it wrote there in :data:`LISTING` (:func:`write_listing`, where it holds a folder). A rerun moves into
-its new folder, at the same path, each entry of the old folder that is the user's (:func:`carry_over`): one of a
-name the output does not own (notes, an analysis folder), and, inside its folders, one the old listing does not
-name (``images/my_annotated.png``), in a folder the old output wrote or not (one a user made, one an earlier carry
-made). What the old listing names is the output's (removed with the old folder, or replaced); an owned file
-(``results.json``) is the output's; :data:`WHOLE` (``report``, which ``tlm report`` writes after the run) is
-replaced whole; an old folder with no listing (a tlm older than it) has its owned folders replaced whole.
+every path it wrote there in :data:`LISTING` (:func:`write_listing`, where it holds a folder), each file's with
+its size and modification time. A rerun moves into its new folder, at the same path, each entry of the old folder
+that is the user's (:func:`carry_over`): one of a name the output does not own (notes, an analysis folder); inside
+its folders, one the old listing does not name (``images/my_annotated.png``), in a folder the old output wrote or
+not (one a user made, one an earlier carry made); and a file the old output wrote that is no longer as written
+(another size or modification time: an annotated ``images/pmap.png``, a hand-edited ``results.json``), at the
+top too. What the old listing names as written is the output's (removed with the old folder, or replaced);
+:data:`WHOLE` (``report``, which ``tlm report`` writes after the run) is replaced whole. A listing of paths alone
+(a tlm's before sizes and times were listed) tells no edited file, and an owned file at the top is the output's,
+listed or not, as it was. An old folder with no listing (deleted; a tlm's older than listings) tells nothing of
+its folders: what the new output writes there is the output's, unsaid; the rest of them is kept, and a warning
+names it (:func:`unlisted_line`: some may be an earlier output's, such as the AOVs of a run that wrote them, for
+the user to remove; none is removed as one); an owned file at the top is the output's.
 
 The listing decides membership only: the paths moved are those of the folder's own entries (``os.listdir``),
 never one the listing names, so a damaged or edited listing (``../x``, ``/etc``) moves or removes nothing outside
@@ -33,34 +39,68 @@ LISTING = ".tlm-written"  # the paths an output wrote in its folder (write_listi
 WHOLE = frozenset({"report"})
 OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work
 SHOWN = 5  # the paths a lost_line names (and how many more)
+# a file's line of a listing: its path, size and modification time (ns), a tab before each; a folder's is its path
+_FILE_LINE = re.compile(rb"(.+)\t([0-9]+)\t(-?[0-9]+)", re.DOTALL)
+
+Stamp = tuple[int, int]  # a file's size and modification time (ns), as its listing gives them
 
 
 def write_listing(tmp: Path, write: Callable[[Path, bytes], None]) -> None:
     """Record every path the finished output ``tmp`` holds (its folders' too, relative, ``/`` between names, one
-    a line, as the file system names it: bytes) in its :data:`LISTING`, written by ``write`` (an atomic write),
-    where it holds a folder (a run's ``images``): what a rerun into its folder tells from the user's files put in
-    those folders (:func:`carry_over`). A name with a newline is left out (its file counts as the user's: kept,
-    never removed by mistake). One walk of the folder, no stat of a file."""
+    a line, as the file system names it: bytes; a file's with its size and modification time in ns, a tab before
+    each: :data:`_FILE_LINE`) in its :data:`LISTING`, written by ``write`` (an atomic write), where it holds a
+    folder (a run's ``images``): what a rerun into its folder tells from the user's files put in those folders,
+    and the files the user edited since (:func:`carry_over`). A name with a newline or a tab is left out (its file
+    or folder counts as the user's: kept, never removed by mistake). One walk of the folder, one ``lstat`` of a
+    file (a link's own)."""
     with os.scandir(tmp) as listing:
         if not any(e.is_dir(follow_symlinks=False) for e in listing):
             return
-    top = os.fsencode(tmp)
-    sep = os.fsencode(os.sep)
-    lines = []
-    for root, dirs, files in os.walk(top):
-        rel = root[len(top) + 1:].replace(sep, b"/")
-        lines.extend((rel + b"/" + n if rel else n) + b"\n" for n in (*dirs, *files) if b"\n" not in n)
-    own = os.fsencode(LISTING) + b"\n"
-    write(tmp / LISTING, b"".join(sorted(p for p in lines if p != own)))
+    lines: list[bytes] = []
+    folders = [b""]
+    while folders:
+        rel = folders.pop()
+        with os.scandir(os.path.join(os.fsencode(tmp), rel) if rel else os.fsencode(tmp)) as entries:
+            for e in entries:
+                if b"\n" in e.name or b"\t" in e.name or (not rel and e.name == os.fsencode(LISTING)):
+                    continue
+                path = rel + b"/" + e.name if rel else e.name
+                if e.is_dir(follow_symlinks=False):
+                    folders.append(path)
+                    lines.append(path + b"\n")
+                else:
+                    st = e.stat(follow_symlinks=False)
+                    lines.append(b"%s\t%d\t%d\n" % (path, st.st_size, st.st_mtime_ns))
+    write(tmp / LISTING, b"".join(sorted(lines)))
 
 
-def listed(out: Path) -> set[str] | None:
-    """The paths the output in ``out`` wrote there (its :data:`LISTING`); None where it has none (or it cannot
-    be read: not a file)."""
+def listed(out: Path) -> dict[str, Stamp | None] | None:
+    """The paths the output in ``out`` wrote there (its :data:`LISTING`), each a file's :data:`Stamp` as written
+    (None: a folder's, or any path of a listing of paths alone, a tlm's before stamps); None where it has none
+    (or it cannot be read: not a file)."""
     try:
-        return {os.fsdecode(p) for p in (out / LISTING).read_bytes().split(b"\n") if p}
+        text = (out / LISTING).read_bytes()
     except OSError:
         return None
+    names: dict[str, Stamp | None] = {}
+    for line in text.split(b"\n"):
+        if line:
+            file = _FILE_LINE.fullmatch(line)
+            names[os.fsdecode(file[1] if file else line)] = (int(file[2]), int(file[3])) if file else None
+    return names
+
+
+def changed(path: Path, stamp: Stamp | None) -> bool:
+    """Whether the file at ``path`` that its output listed with ``stamp`` is no longer as written: another size or
+    modification time, or a folder now (the user's, then). A folder's path, one listed with no stamp, or one gone:
+    False."""
+    if stamp is None:
+        return False
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    return stat.S_ISDIR(st.st_mode) or (st.st_size, st.st_mtime_ns) != stamp
 
 
 def real_dir(path: Path) -> bool:
@@ -71,33 +111,49 @@ def real_dir(path: Path) -> bool:
         return False
 
 
-def carry_over(out: Path, tmp: Path, owned: Collection[str], moved: list[str], lost: list[str]) -> None:
+def carry_over(out: Path, tmp: Path, owned: Collection[str], moved: list[str], lost: list[str]) -> list[str]:
     """Move the user's entries of the old output's folder ``out`` to the same paths in the new output's ``tmp``
     (the module's docstring). ``moved`` gets each path moved (relative to ``out``, ``/`` between names) as it is,
     so that an error or a signal at any point finds every one of them (:func:`put_back`); ``lost`` each path of
-    the user's that the new output's own takes (not moved: removed with the old folder)."""
+    the user's that the new output's own takes (not moved: removed with the old folder). Returned: the paths
+    moved out of the output's own folders of an ``out`` with no listing (:func:`unlisted_line`)."""
     try:
         entries = sorted(os.listdir(out))
     except OSError:
-        return
+        return []
     names = listed(out)
+    stamped = names is not None and any(names.values())  # (a listing of stamps, not of paths alone: a tlm's before)
+    unlisted: list[str] = []
     for name in entries:
         if name == LISTING or OURS.match(name):
             continue
-        if name in owned and (names is None or not real_dir(out / name) or (name in WHOLE and name not in names)):
-            continue  # (an owned file; an older tlm's folder; a report's: the output's, replaced)
-        _carry(out, tmp, name, names or set(), moved, lost)
+        if name in owned:
+            if not real_dir(out / name):
+                if names is None or not stamped or (name in names and not changed(out / name, names[name])):
+                    continue  # (an owned file as the output wrote it, or with no listing of stamps: the output's)
+            elif name in WHOLE and (names is None or name not in names):
+                continue  # (a report's: replaced whole)
+            elif names is None:  # (a folder of an output with no listing: the new output's paths are its own)
+                first = len(moved)
+                _carry(out, tmp, name, {name: None}, moved, [])
+                unlisted.extend(moved[first:])
+                continue
+        _carry(out, tmp, name, names or {}, moved, lost)
+    return unlisted
 
 
-def _carry(out: Path, tmp: Path, path: str, names: set[str], moved: list[str], lost: list[str]) -> None:
-    """Carry ``out/path`` to ``tmp/path`` where it is the user's (not in ``names``, the old listing) and ``tmp``
-    has nothing on its way; look into it where it is a folder that the old output wrote, or one that both hold."""
+def _carry(out: Path, tmp: Path, path: str, names: dict[str, Stamp | None], moved: list[str],
+           lost: list[str]) -> None:
+    """Carry ``out/path`` to ``tmp/path`` where it is the user's (not in ``names``, the old listing, or changed
+    since: :func:`changed`) and ``tmp`` has nothing on its way; look into it where it is a folder that the old
+    output wrote, or one that both hold."""
     src, dst = out / path, tmp / path
-    if path in names or os.path.lexists(dst):
-        if real_dir(src) and (path in names or real_dir(dst)):
+    ours = path in names and not changed(src, names[path])
+    if ours or os.path.lexists(dst):
+        if real_dir(src) and (ours or real_dir(dst)):
             for name in sorted(os.listdir(src)):
                 _carry(out, tmp, f"{path}/{name}", names, moved, lost)
-        elif path not in names:
+        elif not ours:
             lost.append(path)  # (the user's, where the new output writes a path of that name)
         return
     if not _way_clear(tmp, path):
@@ -145,6 +201,17 @@ def put_back(tmp: Path, out: Path, moved: list[str]) -> list[str]:
 
 def lost_line(out: Path, lost: list[str]) -> str:
     """The warning on the user's paths that a new output's own took in ``out`` (:func:`carry_over`'s ``lost``)."""
-    shown = ", ".join(map(quoted, lost[:SHOWN])) + (f" and {len(lost) - SHOWN} more" if len(lost) > SHOWN else "")
-    return (f"{out}: {shown} (not written by the earlier output: yours) "
-            f"{'was' if len(lost) == 1 else 'were'} replaced by this output's own of the same path")
+    from tlm.config_words import listing  # (here: tlm.storage, which imports this module, imports no YAML)
+
+    return (f"{out}: {listing(map(quoted, lost), named=SHOWN)} (yours: not written by the earlier output, or "
+            f"changed since) {'was' if len(lost) == 1 else 'were'} replaced by this output's own of the same path")
+
+
+def unlisted_line(out: Path, kept: list[str]) -> str:
+    """The warning on the paths kept from the output's own folders of an ``out`` with no listing
+    (:func:`carry_over`'s return)."""
+    from tlm.config_words import listing
+
+    return (f"{out} has no {LISTING} (deleted, or written by a tlm older than it), which tells tlm's files from "
+            f"yours: {listing(map(quoted, kept), named=SHOWN)}, which this output does not write, "
+            f"{'was' if len(kept) == 1 else 'were'} kept as yours (remove any an earlier output wrote)")
