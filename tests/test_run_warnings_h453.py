@@ -1,8 +1,9 @@
 """h453: (A) a photon-map run that emits more than BLUR_RATIO times its reference's photons a round is
-warned of (tlm.experiments.run_warnings.blur_warnings): the reference's k-NN kernel is so much wider
-that the pmap error against it measures mostly the reference's blur. Said by the run (``warnings``,
-``results.json``), and by a frame read from the cache (tlm.experiments.frames.cached_render), where it
-follows the reference of the config that reads it, not the one the frame was cached with.
+warned of (tlm.experiments.run_warnings.blur_warnings; per photon map since h465: tests/test_blur_warning_h465.py):
+the reference's k-NN kernel is so much wider that the pmap error against it measures mostly the reference's blur.
+Said by the run (``warnings``, ``results.json``), and by a frame read from the cache
+(tlm.experiments.frames.cached_render), where it follows the reference of the config that reads it, not the
+one the frame was cached with.
 (B) A steady state of a period of two frames or more whose gaps differ by PERIOD_WARNING of TThru is
 warned of (period_warnings): TThru is the mean over the period, which a small change of the work moves
 a lot."""
@@ -42,12 +43,15 @@ def test_a_run_past_the_ratio_warns_and_one_at_it_does_not(tmp_path, cache):
     past = tlm.run(tlm.load_config("cornell", {**TINY, "reference.photons": 400}), tmp_path / "p", outputs="images")
     error = past["error"]
     assert error["available"] and past["photons"]["emitted"] == 2000
+    # (per map since h465: the global map, final gathering's, gets the run's 1000 not aimed at the glass, and the
+    # reference's half of its 400; its caustic map, as many, ties)
     assert _blur(past["warnings"]) == [
-        f"the photon-map frame emits 2000 photons, 5.00x the 400 a round of its reference {error['reference']} "
-        "(reference.photons): each round's k-NN estimate (20 photons) gathers over a wider area than this run's "
-        "gathers, so the pmap error against it (error.rmse, error.rel_mse) may measure the reference's blur more "
-        "than this run's noise; raise reference.photons to 500 or more (at most 4x fewer than the run's) and "
-        "compute it again with 'tlm reference'"]
+        f"the photon-map frame's global map gets 1000 photons a round of the 2000 it emits, its reference "
+        f"{error['reference']}'s 200 (half of reference.photons 400): each k-NN round of the reference (20 photons: "
+        "reference.k_nearest) gathers in a map 5.00x sparser than this run's, so the pmap error against it "
+        "(error.rmse, error.rel_mse) may measure the reference's blur more than this run's noise; raise "
+        "reference.photons to 500 or more (at most 4x this run's on that map) and compute it again with "
+        "'tlm reference'"]
     assert json.loads((tmp_path / "p" / "results.json").read_text())["warnings"] == past["warnings"]
     at = tlm.run(tlm.load_config("cornell", {**TINY, "reference.photons": 500}), tmp_path / "a", outputs="images")
     assert at["error"]["available"] and _blur(at["warnings"]) == []
@@ -57,13 +61,15 @@ def test_a_null_reference_count_is_the_scenes_and_caustic_photons_count(cache):
     # (the run's photons: its caustic group's own caustic_count beside count)
     res = tlm.render_image(tlm.load_config("cornell", {**TINY, "resolution": [4, 4], "photons.count": 200,
                                                        "photons.caustic_count": 800, "reference.auto": False}))
-    assert emitted_photons(res) == 1000
-    # (cornell's scene file gives 120000: a null reference.photons takes it, and 482000 is 4.02x that)
+    assert emitted_photons(res)["emitted"] == 1000
+    # (cornell's scene file gives 120000: a null reference.photons takes it, half of it its global group's; the run's
+    # 482000 half too, 4.02x that)
     error = {"available": True, "reference": "k"}
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap"}, "t")
     line = blur_warnings(error, cfg, 482000, 120000)
-    assert len(line) == 1 and "4.02x the 120000 a round of its reference k (reference.photons null: the scene's " \
-        "photons)" in line[0] and "raise reference.photons to 120500 or more" in line[0]
+    assert len(line) == 1 and "global map gets 241000 photons a round of the 482000 it emits, its reference k's " \
+        "60000 (half of the scene's 120000: reference.photons null)" in line[0] and "4.02x sparser" in line[0] \
+        and "raise reference.photons to 120500 or more" in line[0]
     assert blur_warnings(error, cfg, 480000, 120000) == []  # (4x: not past the ratio)
     assert blur_warnings({"available": False, "reference": "k"}, cfg, 482000, 120000) == []  # (no error measured)
     assert blur_warnings(error, cfg, None, 120000) == []  # (no photon-map pass)

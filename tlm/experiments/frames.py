@@ -503,7 +503,7 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
     error = run.error_against(key, settings, frame, image, meta)
     summary = {**got.summary, "error": error,
                "warnings": [*(got.summary.get("warnings") or []),
-                            *reference_warnings(error, cfg, (got.summary.get("photons") or {}).get("emitted"),
+                            *reference_warnings(error, cfg, got.summary.get("photons"),
                                                 scene_photons if scene is None else scene.photons)]}
     return replace(got, summary=summary)
 

@@ -151,7 +151,7 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
     fn = got.functional
     # the frame's own warnings, as tlm run says them (a camera that sees nothing, a black image, a light that
     # reaches nothing: the study's cycles are of that frame, h394); not the photon frame's error, none of its business
-    off = reference_warnings(got.summary.get("error"), cfg, (got.summary.get("photons") or {}).get("emitted"),
+    off = reference_warnings(got.summary.get("error"), cfg, got.summary.get("photons"),
                              (got.summary.get("scene") or {}).get("photons"))  # (the blur line too, h453)
     for line in dict.fromkeys(got.summary.get("warnings") or []):
         if line not in off:

@@ -3,7 +3,8 @@ but a wrong or a misleading result.
 
 :func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
 a setting the run never reads, an override of a key whose pass is left out:
-:func:`unread_overrides`, a reference not converged or much blurrier than the run: :func:`reference_warnings`,
+:func:`unread_overrides`, a reference not converged or much blurrier than the run, or a k-NN run much blurrier
+than its reference: :func:`reference_warnings`,
 a BSP cut short); :func:`stream_warnings`: the simulated stream's (too few frames, a period whose gaps differ:
 :func:`period_warnings`, packets too coarse from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set
 that the timing model never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -513,7 +515,8 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
     against a reference that is not converged (``reference_converged`` false: it does not meet
     ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it; and, given the
     run's ``emitted`` photons and the scene's (``scene_photons``, what a null ``reference.photons``
-    takes), the line of :func:`blur_warnings` on a reference much blurrier than the run."""
+    takes), the lines of :func:`blur_warnings` on a reference much blurrier than the run (or a k-NN run much
+    blurrier than it)."""
     blur = blur_warnings(error, cfg, emitted, scene_photons)
     if not (error and error.get("available")) or error.get("reference_converged"):
         return blur
@@ -526,52 +529,121 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
             *blur]
 
 
-# the run's photons a round past this many times its reference's: the run's k-NN kernel is so much narrower that
-# its error against the reference may measure the reference's blur more than its noise (h453:
-# configs/cornell-water.yaml 4.17x, configs/ring.yaml with --mode pmap 15x, the other committed configs 1x; a
-# reference's cost grows with its photons)
+# a photon map's kernel past this many times the area of the other's (h453, per map since h465): the reference's
+# k-NN rounds gather so much wider than the run that its error against the reference may measure the reference's
+# blur more than its noise (configs/cornell-water.yaml: its caustic map 6.25x; configs/ring.yaml with --mode pmap:
+# its indirect map 20x; the other committed configs 1x or less; a reference's cost grows with its photons); or, of
+# a k-NN run (estimate.k_nearest past reference.k_nearest), the run's so much wider that the error is its own blur
 BLUR_RATIO = 4
 
 
-def emitted_photons(res: RenderResult) -> int | None:  # noqa: F821
-    """The photons the run's photon-map pass emitted (its caustic group's own ``photons.caustic_count``
-    included), None without the pass."""
-    return None if res.photons is None else int(res.photons.photons.stats()["emitted"])
+def emitted_photons(res: RenderResult) -> dict | None:  # noqa: F821
+    """What :func:`blur_warnings` reads of the run's photon-map pass, as ``results.json`` ``photons`` records it:
+    ``emitted``, the photons it emitted (its caustic group's own ``photons.caustic_count`` included), and
+    ``caustic``, the caustic photons its maps stored (none: a scene without a mirror or glass). None without the
+    pass."""
+    if res.photons is None:
+        return None
+    stats = res.photons.photons.stats()
+    return {"emitted": int(stats["emitted"]), "caustic": int(stats["caustic"])}
 
 
-def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | None, scene_photons: int | None) -> list[str]:
-    """A line when the photon-map frame's error was measured (``error`` ``available``) against a reference
-    whose photons a round (``reference.photons``, null: the scene's ``scene_photons``) are fewer than the
-    run's ``emitted`` by more than :data:`BLUR_RATIO` times: each of its rounds is a k-NN estimate whose
-    kernel holds ``reference.k_nearest`` photons of a map that much sparser, so it converges to an image
-    blurrier than the run's; the error (``error.rmse``, ``error.rel_mse``) then may measure that blur more
-    than the run's noise (h457). It names both counts and the key to raise. None where no kernel of the run follows its
-    photons' density (:func:`_kernels_fixed`): its photons then make none of its kernels narrower (h457)."""
-    if not (error and error.get("available")) or emitted is None or _kernels_fixed(cfg):
+def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int | None) -> list[tuple]:
+    """``(map, the run's photons a round, the reference's, the run's kernel photons, the key that gives them)``
+    of each photon map the run gathers whose kernel follows its photons: the caustic map (none where the scene
+    stores no caustic photon) and the indirect one (``global`` with final gathering). The photons each map gets a
+    round are its group's: with a mirror or glass, the run's caustic group (``photons.caustic_count``, else
+    ``caustic_fraction`` of its photons) feeds its caustic map, the rest its indirect one; the reference's
+    (:func:`tlm.experiments.reference.reference_config`: the default caustic_fraction 0.5) half each; without
+    a mirror or glass, every photon the indirect map (and no caustic map is compared, nor one the run's caustic
+    group left empty: a caustic_fraction or caustic_count 0, whose caustic photons, not aimed, are not as dense
+    as its count says). The kernel photons are compared where both kernels take the k nearest at each
+    point alike: ``estimate.k_nearest`` (``filter: knn``), ``radius_photons`` (the density rule of the indirect
+    map, without final gathering: indirect light is smooth, so the one radius the rule fits to the map's median
+    photon holds about that many everywhere). Elsewhere the photons alone (the kernel photons taken as the
+    reference's, as h453 did): the caustic map's density rule (its one radius, fitted to the median caustic
+    photon, most of which spread thin, holds many times ``caustic_radius_photons`` in a caustic's bright core,
+    where the reference's k nearest shrink), and final gathering's global map (the indirect light at the eye's
+    point is the mean of ``final_gather`` lookups a bounce away, not one kernel). None of a map whose radius the
+    config fixes (h457: more photons make it no narrower)."""
+    emitted, stored = (photons.get("emitted"), photons.get("caustic")) if isinstance(photons, dict) else (photons, None)
+    p, est, k_ref = cfg.photons, cfg.estimate, cfg.reference.k_nearest
+    n = p.count if p.count is not None else scene_photons  # (the global group's, beside a caustic_count)
+    # (a mirror or glass: caustic photons stored; unknown, a caustic budget of its own tells by what was emitted)
+    specular = stored > 0 if isinstance(stored, int) else emitted > n if p.caustic_count and n else True
+    aimed = specular and (p.caustic_count > 0 if p.caustic_count is not None else p.caustic_fraction > 0)
+    caustic = (p.caustic_count if p.caustic_count is not None else round(emitted * p.caustic_fraction)) if aimed else 0
+    run = {"caustic": caustic, "indirect": emitted - caustic}
+    ref = Fraction(n_ref, 2 if specular else 1)
+    knn, fg = not uses_radius(est.filter), est.final_gather > 0
+    fixed = {"caustic": est.caustic_radius is not None or est.caustic_radius_fraction is not None,
+             "indirect": est.radius is not None or est.radius_fraction is not None}
+    out = []
+    for name in ("indirect", "caustic") if aimed else ("indirect",):
+        if (not knn and fixed[name]) or run[name] <= 0:
+            continue
+        if knn and not (fg and name == "indirect"):
+            k, how = est.k_nearest, "estimate.k_nearest"
+        elif not knn and name == "indirect" and not fg:
+            k, how = est.radius_photons, "estimate.radius_photons"
+        else:
+            k, how = k_ref, None
+        out.append(("global" if name == "indirect" and fg else name, run[name], ref, k, how))
+    return out
+
+
+def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | dict | None,
+                  scene_photons: int | None) -> list[str]:
+    """Lines when the photon-map frame's error was measured (``error`` ``available``) against a reference whose
+    kernel is much wider or narrower than the run's on a photon map the run gathers (:func:`_per_map`: each map's
+    photons a round, the run's by ``emitted``, :func:`emitted_photons` or its count alone, the reference's of
+    ``reference.photons``, null: the scene's ``scene_photons``; and the photons each kernel holds, the reference's
+    ``reference.k_nearest``). A k-NN kernel's area goes as its photons over the map's: where the reference's is
+    past :data:`BLUR_RATIO` times the run's, each of its rounds converges to an image blurrier than the run's and
+    the error (``error.rmse``, ``error.rel_mse``) may measure that blur more than the run's noise (h453); the line
+    names the worst map, both counts and the ``reference.photons`` to give. Where a k-NN run's
+    (``estimate.k_nearest`` past ``reference.k_nearest``) is past that many times the reference's, the run is the
+    blurrier by design, and its error mostly its own blur (h465); the line names the ``k_nearest`` to give."""
+    if not (error and error.get("available")) or emitted is None:
         return []
     given = cfg.reference.photons
-    ref = scene_photons if given is None else given
-    if not isinstance(ref, int) or ref <= 0 or emitted <= BLUR_RATIO * ref:
+    n_ref = scene_photons if given is None else given
+    total = emitted.get("emitted") if isinstance(emitted, dict) else emitted
+    if not isinstance(n_ref, int) or n_ref <= 0 or not isinstance(total, int) or total <= 0:
         return []
-    whose = "reference.photons" if given is not None else "reference.photons null: the scene's photons"
-    return [f"the photon-map frame emits {emitted} photons, {emitted / ref:.2f}x the {ref} a round of its "
-            f"reference {error['reference']} ({whose}): each round's k-NN estimate ({cfg.reference.k_nearest} "
-            "photons) gathers over a wider area than this run's gathers, so the pmap error against it (error.rmse, "
-            "error.rel_mse) may measure the reference's blur more than this run's noise; raise reference.photons "
-            f"to {-(-emitted // BLUR_RATIO)} or more (at most {BLUR_RATIO}x fewer than the run's) and compute it "
-            "again with 'tlm reference'"]
+    maps = [(cfg.reference.k_nearest * run / (ref * k), name, run, ref, k, how)
+            for name, run, ref, k, how in _per_map(cfg, emitted, n_ref, scene_photons)]
+    whose = f"reference.photons {n_ref}" if given is not None else f"the scene's {n_ref}: reference.photons null"
+    lines = []
+    wide = max(maps, default=None, key=lambda m: m[0])
+    if wide is not None and wide[0] > BLUR_RATIO:
+        ratio, name, run, ref, k, how = wide
+        lines.append(
+            f"the photon-map frame's {name} map gets {run} photons a round of the {total} it emits, its reference "
+            f"{error['reference']}'s {_share(ref, n_ref, whose)}: each k-NN round of the reference "
+            f"({cfg.reference.k_nearest} photons: reference.k_nearest) "
+            + (f"gathers over {float(ratio):.2f}x the area of this run's gathers of {k} ({how})" if how else
+               f"gathers in a map {float(ratio):.2f}x sparser than this run's")
+            + ", so the pmap error against it (error.rmse, error.rel_mse) may measure the reference's blur more "
+            f"than this run's noise; raise reference.photons to {math.ceil(n_ref * ratio / BLUR_RATIO)} or more (at "
+            f"most {BLUR_RATIO}x this run's on that map) and compute it again with 'tlm reference'")
+    narrow = min((m for m in maps if m[5] == "estimate.k_nearest"), default=None, key=lambda m: m[0])
+    if narrow is not None and narrow[4] > cfg.reference.k_nearest and narrow[0] * BLUR_RATIO < 1:
+        ratio, name, run, ref, k, how = narrow
+        lines.append(
+            f"the photon-map frame's k-NN estimate gathers {k} photons at a time (estimate.k_nearest) of the {run} "
+            f"its {name} map gets a round, over {float(1 / ratio):.2f}x the area of its reference "
+            f"{error['reference']}'s rounds ({cfg.reference.k_nearest} photons: reference.k_nearest, of "
+            f"{_share(ref, n_ref, whose)}): this run is the blurrier by design, so the pmap error against it "
+            "(error.rmse, error.rel_mse) measures mostly its own blur, not its noise; an estimate.k_nearest of "
+            f"{max(1, math.floor(k * ratio * BLUR_RATIO))} or fewer gathers within {BLUR_RATIO}x the reference's "
+            "area (or more photons do)")
+    return lines
 
 
-def _kernels_fixed(cfg: RunConfig) -> bool:
-    """Whether every gather of the run is within a radius its config fixes (``estimate.radius`` or ``radius_fraction``,
-    ``caustic_radius`` or ``caustic_radius_fraction``; a filter of a radius; no final gathering, whose global map is
-    gathered at ``final_gather_photons``' density): more photons make none of its kernels narrower, and how the
-    reference's k-NN kernel compares with them its photons alone do not tell (h457: a fixed radius_fraction 0.02 run
-    of 5x the reference's photons can be the blurrier)."""
-    est = cfg.estimate
-    return (uses_radius(est.filter) and getattr(est, "final_gather", 0) == 0
-            and (est.radius is not None or est.radius_fraction is not None)
-            and (est.caustic_radius is not None or est.caustic_radius_fraction is not None))
+def _share(ref: Fraction, n_ref: int, whose: str) -> str:
+    """The reference's photons a round that a map gets, in words: all of them, or half (its caustic group's)."""
+    return f"{n_ref} ({whose})" if ref == n_ref else f"{math.floor(ref)} (half of {whose})"
 
 
 def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = None) -> list[str]:
