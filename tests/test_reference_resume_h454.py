@@ -213,7 +213,7 @@ def test_a_process_behind_does_not_replace_the_rounds_of_one_ahead(cache, monkey
     assert partial_info(partial_path(key))["k"] == 3
     behind.save(rounds(4))
     assert partial_info(partial_path(key))["k"] == 4
-    Partial(key, 3, pixels).save(rounds(1))  # (cycles of another length: replaced, last writer's)
+    Partial(key, 3, pixels).save(rounds(3))  # (cycles of another length, 9 rounds over 8: replaced)
     assert partial_info(partial_path(key))["strata"] == 3
     assert sorted(p.name for p in (cache / "references").iterdir()) == [f"{key}.partial.npz"]  # (no temporaries)
 

@@ -15,8 +15,9 @@ An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` wit
 ``normals-<key>.npz`` or a scene's remembered fingerprint ``key-<key>.json``; ``references/<key>/``
 and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``), and ``references/<key>.partial.npz``, the rounds saved of a reference being computed or
-interrupted (:mod:`tlm.experiments.reference_resume`: an entry of its own, which a prune may remove as
-any other; the compute that wrote it writes it again at its next save);
+interrupted (:mod:`tlm.experiments.reference_resume`: an entry of its own, a **partial**, which ``tlm cache``
+names with the rounds its header says it holds, :func:`partial_state`, and a prune may remove as any other, but
+while a live process of this machine computing it saved it under :data:`BUSY_SECONDS` ago: a write in progress);
 ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be written) a
 kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
@@ -83,12 +84,20 @@ class Entry:
     size: int = 0
     last_use: float = 0.0
     leftover: bool = False
+    partial: str = ""  # a partial (references/<key>.partial.npz): what it is, ``24 rounds saved by ...``
+    rounds: int | None = None  # a partial's rounds (None: unreadable, or no partial)
     # (each file's :func:`_fingerprint` as the scan saw it: :func:`remove` removes a file only while it is
     # still that one)
     seen: dict[Path, dict[str, tuple[int, ...]]] = field(default_factory=dict, repr=False, compare=False)
 
     def shown(self) -> str:
         return f"{self.cache}/{self.name}"
+
+    def row(self) -> dict:
+        """As ``--json`` lists it (a prune's ``removed``, ``tlm cache --json``'s ``partials``): a partial with its
+        ``partial_rounds`` and its ``partial`` words."""
+        row = {"entry": self.shown(), "bytes": self.size, "last_use": stamp(self.last_use)}
+        return {**row, "partial_rounds": self.rounds, "partial": self.partial} if self.partial else row
 
 
 @dataclass
@@ -103,6 +112,7 @@ class Cache:
     busy_size: int = 0
     other: list[Path] = field(default_factory=list)
     other_size: int = 0
+    partials: list[Entry] = field(default_factory=list)  # (references/: the partials, entries or being written)
 
     @property
     def size(self) -> int:
@@ -111,11 +121,13 @@ class Cache:
     def record(self) -> dict:
         """As ``tlm cache --json`` prints it."""
         uses = [e.last_use for e in self.entries]
+        listed = {id(e) for e in self.entries}  # (a partial not among them: being written)
         return {"cache": self.name, "folder": str(self.folder), "entries": len(self.entries), "bytes": self.size,
                 "oldest_use": stamp(min(uses)) if uses else None, "newest_use": stamp(max(uses)) if uses else None,
                 "leftovers": sum(e.leftover for e in self.entries), "being_written": len(self.busy),
                 "being_written_bytes": self.busy_size, "not_tlms": [str(p) for p in self.other],
-                "not_tlms_bytes": self.other_size}
+                "not_tlms_bytes": self.other_size,
+                "partials": [{**e.row(), "being_written": id(e) not in listed} for e in self.partials]}
 
 
 def _usage(path: Path) -> tuple[int, float, float]:
@@ -195,8 +207,14 @@ def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache
                       seen=_seen(files))
         marker = _MARKERS.get(name)
         written = max(m for _, _, m in sizes)
-        if marker is not None and not any(f.name.endswith(marker) for f in files) and now - written < BUSY_SECONDS:
-            cache.busy.extend(files)  # (its writer puts the sidecar in place last)
+        computing = False
+        if name == "references" and _PARTIAL.fullmatch(key):
+            entry.rounds, entry.partial, computing = partial_state(files[0], written, now)
+            cache.partials.append(entry)
+        # (its writer puts the sidecar in place last; a partial's, a compute at work, saves it again)
+        if computing or (marker is not None and not any(f.name.endswith(marker) for f in files)
+                         and now - written < BUSY_SECONDS):
+            cache.busy.extend(files)
             cache.busy_size += entry.size
         else:
             cache.entries.append(entry)
@@ -209,6 +227,32 @@ def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache
             cache.entries.append(Entry(name, str(path.relative_to(folder)), [path], size, used, leftover=True,
                                        seen=_seen([path])))
     return cache
+
+
+def partial_state(path: Path, written: float, now: float) -> tuple[int | None, str, bool]:
+    """What the rounds saved of a reference (``references/<key>.partial.npz``, last written at ``written``) are,
+    by their header: ``(rounds, words, computing)``: the rounds it holds (its cycles times their rounds; None where
+    it cannot be read: a damaged file, or another tlm's layout), what ``tlm cache`` says of it after ``partial:``
+    (``24 rounds saved by an interrupted compute``), and whether a live process of this machine other than this
+    one saved it under :data:`BUSY_SECONDS` ago (``now``): a compute at work, whose file is a write in progress
+    (the compute saves it again at its next save)."""
+    try:
+        import numpy as np
+
+        with np.load(path, allow_pickle=False) as z:
+            info = json.loads(str(z["info"][()]))
+    except Exception:  # (a damaged file, whatever numpy, zipfile or json make of it)
+        info = None
+    info = info if isinstance(info, dict) else {}
+    k, strata, writer = info.get("k"), info.get("strata"), info.get("writer")
+    if not (type(k) is int and type(strata) is int and k > 0 and strata > 0):
+        return None, ("its rounds cannot be read (a damaged file, or another tlm's: the next compute of its key says "
+                      "which)"), False
+    rounds = k * strata
+    if (isinstance(writer, str) and writer != process_tag() and now - written < BUSY_SECONDS
+            and _live_writer(writer)):
+        return rounds, f"{rounds} rounds saved so far by process {writer.rpartition('-')[2]}, computing it now", True
+    return rounds, f"{rounds} rounds saved by an interrupted compute", False
 
 
 def _seen(files: list[Path]) -> dict[Path, dict[str, tuple[int, ...]]]:
@@ -403,12 +447,9 @@ class Outcome:
 
     def record(self) -> dict:
         """What ``tlm cache prune --json`` prints and :func:`tlm.prune_cache` returns."""
-        def row(e: Entry) -> dict:
-            return {"entry": e.shown(), "bytes": e.size, "last_use": stamp(e.last_use)}
-
         kept = self.kept
-        return {"dry_run": self.dry_run, "removed": [row(e) for e in self.removed],
-                "not_removed": [{**row(e), "why": why} for e, why in self.failed],
+        return {"dry_run": self.dry_run, "removed": [e.row() for e in self.removed],
+                "not_removed": [{**e.row(), "why": why} for e, why in self.failed],
                 "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}
 
 

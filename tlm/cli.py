@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from tlm import api, claims, storage
+from tlm import api, claims, cli_report, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_args import experiment_argument as _experiment_file
@@ -223,8 +223,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                  "with the default settings")
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     with claims.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
-        results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
-                          say=say_err)
+        with cli_report.reference_cut_short():  # (a signal as its reference is computed: its rounds kept, said)
+            results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
+                              say=say_err)
         with kept_whole(args, out, "the run", "results.json and its files"):  # (a signal from here on: the run
             print_run(results, out, skip, lambda: _reference_command(args, overrides), t0)  # is in place, said so)
             report_after(args, out, "the run", "results.json and its files")
@@ -323,12 +324,13 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 def _cmd_reference(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    made = api.reference(
-        api.load_config(args.config, list(args.set or [])), force=args.force, say=print,
-        progress=lambda k, c, e: None if math.isnan(e) else _say(  # (NaN: a round that ends no measured cycle)
-            f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
-        bar=not args.no_progress,
-    )
+    with cli_report.reference_cut_short():  # (a signal as it is computed: the rounds kept, and how to resume)
+        made = api.reference(
+            api.load_config(args.config, list(args.set or [])), force=args.force, say=print,
+            progress=lambda k, c, e: None if math.isnan(e) else _say(  # (NaN: a round that ends no measured cycle)
+                f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
+            bar=not args.no_progress,
+        )
     meta = made.meta
     if not made.computed and made.meets:  # (a cached one kept that misses the tolerance: said below)
         print(f"reference {made.key} is cached, relative standard error {meta['relative_standard_error']:.4f} "
@@ -369,8 +371,9 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
         print(f"error-vs-cost: {message}", flush=True)
 
     with study_claimed(out, "rows.jsonl"):
-        rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
-                                 **_overrides(args))
+        with cli_report.reference_cut_short():  # (a signal as its reference is computed: its rounds kept, said)
+            rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
+                                     **_overrides(args))
         with kept_whole(args, out, "the study", "rows.csv, rows.jsonl and reference.json"):
             print(f"wrote {out} ({len(rows)} rows)")
             report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")

@@ -17,6 +17,9 @@ _LAST_USE = ("Last use: the latest access or modification time of an entry's fil
              "it; numba's read of a kernel only where the file system keeps access times)")
 
 
+_PARTIALS_SHOWN = 10  # (tlm cache: a line each for the first partials, references/<key>.partial.npz)
+
+
 def _out(line: str) -> None:
     """A line of the command's output on stdout (ruff's T20 is for tlm/cli.py's prints alone)."""
     sys.stdout.write(line + "\n")
@@ -117,12 +120,14 @@ def cache_command(args: argparse.Namespace) -> int:
     if args.dry_run:
         chosen = outcome.chosen
         for e in chosen:
-            _out(f"would remove {e.shown()} ({ca.human(e.size)}, last used {_when(e.last_use)})")
+            _out(f"would remove {e.shown()} ({ca.human(e.size)}, last used {_when(e.last_use)}"
+                 + (f"; partial: {e.partial})" if e.partial else ")"))
         _out(f"would remove {_count(chosen)} ({ca.human(sum(e.size for e in chosen))}), keep {len(kept)} "
              f"({ca.human(kept_size)}){skipped}; nothing removed (--dry-run)")
         return 0
     done = outcome.removed
-    _out(f"removed {_count(done)} ({ca.human(sum(e.size for e in done))}) from {_where(done)}, kept {len(kept)} "
+    _out(f"removed {_count(done)} ({ca.human(sum(e.size for e in done))}) from {_where(done)}{_partials(done)}, "
+         f"kept {len(kept)} "
          f"({ca.human(kept_size)}){skipped}" + (f"; {len(used)} used meanwhile kept" if used else ""))
     if failed:
         e, why = failed[0]
@@ -130,6 +135,20 @@ def cache_command(args: argparse.Namespace) -> int:
              f"(kept), e.g. {e.shown()}: {why}")
         return 1
     return 0
+
+
+def _partials(entries: list) -> str:
+    """What of ``entries`` are partials (a reference's saved rounds: :func:`tlm.cache_admin.partial_state`), where
+    any are: `` (1 partial: 24 rounds saved by an interrupted compute)``."""
+    partials = [e for e in entries if e.partial]
+    if not partials:
+        return ""
+    known = [e for e in partials if e.rounds]
+    words = [f"{sum(e.rounds for e in known)} rounds saved by "
+             + ("an interrupted compute" if len(known) == 1 else "interrupted computes")] if known else []
+    if len(known) < len(partials):
+        words.append(f"{len(partials) - len(known)} unreadable")
+    return f" ({len(partials)} partial{'' if len(partials) == 1 else 's'}: {', '.join(words)})"
 
 
 def _count(entries: list) -> str:
@@ -175,6 +194,11 @@ def _info(names: list[str], as_json: bool) -> int:
     for r in rows:
         _out("  ".join(v.rjust(w) if k in (1, 2) else v.ljust(w) for k, (v, w) in enumerate(zip(r, widths)))
              .rstrip())
+    partials = [e for c in caches for e in c.partials]
+    for e in partials[:_PARTIALS_SHOWN]:
+        _out(f"{e.shown()}: partial: {e.partial} ({ca.human(e.size)}, last used {_when(e.last_use)})")
+    if len(partials) > _PARTIALS_SHOWN:
+        _out(f"and {len(partials) - _PARTIALS_SHOWN} partials more (tlm cache --json lists them)")
     busy = [c for c in caches if c.busy]
     other = [p for c in caches for p in c.other]
     line = f"the folder in all: {ca.human(ca.folder_size(home))}"

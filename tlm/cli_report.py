@@ -1,7 +1,8 @@
 """The report a command writes at its end (``OUT/report``, :func:`report_after`), the claim of a
 report's folder that it and ``tlm report`` take (:func:`report_claimed`), and what a signal while
-it is written says (:func:`_report_interrupted`), and one while a sweep's points run
-(:func:`sweep_cut_short`); with the line a command says on stderr (:func:`say_err`). Printing only, as
+it is written says (:func:`_report_interrupted`), one while a sweep's points run
+(:func:`sweep_cut_short`), and one while a reference is computed (:func:`reference_cut_short`); with the
+line a command says on stderr (:func:`say_err`). Printing only, as
 :mod:`tlm.cli`: the report itself is :mod:`tlm.api`'s."""
 
 from __future__ import annotations
@@ -98,6 +99,58 @@ def sweep_cut_short(out: Path) -> Iterator[None]:
         of = f" ({failed} failed, to run again)" if failed else ""
         raise Interrupted(f"with {rows} of {total} points finished{of} and kept in {path_shown(out)}; "
                           "run the same command to go on") from e
+
+
+@contextmanager
+def reference_cut_short() -> Iterator[None]:
+    """Around a command that may compute a photon-map reference (``tlm run``, ``tlm reference``, ``tlm
+    error-vs-cost``): a signal while one is computed ends it saying how many of its rounds the cache keeps, read
+    from the file they are saved in (``references/<key>.partial.npz``, :mod:`tlm.experiments.reference_resume`),
+    and that the same command resumes from there, or that none were saved yet (not a bare ``tlm: interrupted``,
+    which left the user to guess that the minutes spent are kept). A signal at another time: its own line."""
+    try:
+        yield
+    except BaseException as e:  # (a Ctrl-C, or an error a C extension made of it: errors.interrupted_by)
+        if isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
+            raise
+        line = _reference_kept(e)
+        if line is None:
+            raise
+        raise Interrupted(line) from e
+
+
+def _stopped_compute(e: BaseException | None):
+    """The saved rounds (``tlm.experiments.reference_resume.Partial``) of the reference compute the interrupt ``e``
+    stopped, or an error of its chain of causes and contexts did: its attribute ``reference_partial``
+    (``reference_resume.MARK``, set as it left the rounds; the CLI reaches that layer through tlm.api only). None
+    where it stopped none."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        found = getattr(e, "reference_partial", None)
+        if found is not None:
+            return found
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _reference_kept(e: BaseException) -> str | None:
+    """What :func:`reference_cut_short` says of the reference compute ``e`` stopped; None where it stopped none."""
+    try:
+        saved = _stopped_compute(e)
+        rounds = 0 if saved is None else saved.kept()
+    except Exception:  # (what stopped the command goes on whatever: its line the bare one)
+        return None
+    if saved is None:
+        return None
+    if rounds:
+        return (f"while computing the reference: its {rounds} rounds are kept in {path_shown(saved.path)}; "
+                f"run the same command to resume from round {rounds}")
+    if saved.off:  # (its one line said the cache cannot be written: tlm.caches)
+        return ("while computing the reference: none of its rounds are kept (the cache cannot be written); "
+                "the same command computes it from round 1")
+    return ("while computing the reference, before its first rounds were saved: the same command computes it "
+            "from round 1")
 
 
 @contextmanager

@@ -85,7 +85,7 @@ from tlm.experiments.reference_cache import (
     store_reference,
     verdict,
 )
-from tlm.experiments.reference_resume import Partial, Rounds
+from tlm.experiments.reference_resume import Partial, Rounds, marked
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
@@ -320,37 +320,38 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     if k0 > 1:
         rounds.set_postfix_str(f"rse {errors[-1]:.4f}, stop < {settings.tolerance}")
     children = np.random.SeedSequence(REFERENCE_SEED).spawn(max_cycles)
-    for k, child in enumerate([] if converged else children[k0:], start=k0 + 1):
-        shift_seed = int(child.generate_state(1)[0])
-        frame_k = np.zeros_like(mean)
-        for turn, each in enumerate(child.spawn(strata)):
-            checkpoint()  # (a lost interrupt stops the reference here, not at its last round)
-            photon_seed, eye_seed = (int(x) for x in each.generate_state(2))
-            frame_k += reference_round(rframe, settings, photon_seed, eye_seed, strata, turn, shift_seed)
-            rounds.update()
-            if progress is not None and turn < strata - 1:  # (a cycle's last round: after its measures)
-                progress((k - 1) * strata + turn + 1, math.nan, math.nan)
-        frame_k /= strata
-        delta = frame_k - mean
-        new = mean + delta / k
-        m2 += delta * (frame_k - new)
-        norm = float(np.sqrt(np.mean(new**2)))
-        if k > 1 and norm > 0:
-            changes.append(float(np.sqrt(np.mean((new - mean) ** 2)) / norm))
-            errors.append(float(np.sqrt(np.mean(m2 / (k - 1) / k)) / norm))
-        elif k > 1:
-            changes.append(0.0)
-            errors.append(0.0)
-        mean = new
-        if k > 1:
-            rounds.set_postfix_str(f"rse {errors[-1]:.4f}, stop < {settings.tolerance}")  # (fits 80 columns)
-        if progress is not None:
-            progress(k * strata, changes[-1] if k > 1 else math.nan, errors[-1] if k > 1 else math.nan)
-        if k >= min_cycles and errors[-1] < settings.tolerance:
-            converged = True
-            break
-        if saved is not None and k < max_cycles:  # (the state after this cycle: an interrupt resumes from it)
-            saved.save(Rounds(k, mean, m2, changes, errors, done.seconds + time.perf_counter() - t0))
+    with marked(saved):  # (an interrupt of the rounds carries them: tlm run's line says how many are kept)
+        for k, child in enumerate([] if converged else children[k0:], start=k0 + 1):
+            shift_seed = int(child.generate_state(1)[0])
+            frame_k = np.zeros_like(mean)
+            for turn, each in enumerate(child.spawn(strata)):
+                checkpoint()  # (a lost interrupt stops the reference here, not at its last round)
+                photon_seed, eye_seed = (int(x) for x in each.generate_state(2))
+                frame_k += reference_round(rframe, settings, photon_seed, eye_seed, strata, turn, shift_seed)
+                rounds.update()
+                if progress is not None and turn < strata - 1:  # (a cycle's last round: after its measures)
+                    progress((k - 1) * strata + turn + 1, math.nan, math.nan)
+            frame_k /= strata
+            delta = frame_k - mean
+            new = mean + delta / k
+            m2 += delta * (frame_k - new)
+            norm = float(np.sqrt(np.mean(new**2)))
+            if k > 1 and norm > 0:
+                changes.append(float(np.sqrt(np.mean((new - mean) ** 2)) / norm))
+                errors.append(float(np.sqrt(np.mean(m2 / (k - 1) / k)) / norm))
+            elif k > 1:
+                changes.append(0.0)
+                errors.append(0.0)
+            mean = new
+            if k > 1:
+                rounds.set_postfix_str(f"rse {errors[-1]:.4f}, stop < {settings.tolerance}")  # (fits 80 columns)
+            if progress is not None:
+                progress(k * strata, changes[-1] if k > 1 else math.nan, errors[-1] if k > 1 else math.nan)
+            if k >= min_cycles and errors[-1] < settings.tolerance:
+                converged = True
+                break
+            if saved is not None and k < max_cycles:  # (the state after this cycle: an interrupt resumes from it)
+                saved.save(Rounds(k, mean, m2, changes, errors, done.seconds + time.perf_counter() - t0))
     rounds.close()
     cycles = len(errors) + 1
     meta = {

@@ -20,8 +20,8 @@ user's folder, one others may write) is not written into (:func:`private_folder`
 A reference computed by ``tlm run`` or ``tlm reference`` saves its rounds at the end of its cycles
 beside its entry, ``references/<key>.partial.npz`` (:func:`partial_path`;
 :mod:`tlm.experiments.reference_resume`), so that one interrupted resumes from there; the file is removed
-once the reference is stored, or could not be (:func:`drop_partial`), and ``tlm cache`` lists and prunes
-it as an entry of its own.
+once the reference is stored, or could not be (:func:`drop_partial`), and ``tlm cache`` lists it as a partial
+with its rounds and prunes it as an entry of its own (:func:`tlm.cache_admin.partial_state`).
 
 A sweep (``tlm sweep --reference``) holds its own copy of each reference its points are measured
 against, for the sweep's duration (:func:`holding`): a point reads it there first, so that a

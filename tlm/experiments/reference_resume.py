@@ -23,9 +23,14 @@ Rounds saved under another stopping rule are resumed where the rule asked for no
 before them; rounds past the point where it stops (more cycles than its ``max_rounds`` allows, or a cycle
 before the last saved one that meets its tolerance) are not resumed (the compute starts from round 1 and
 stops where that rule stops it: they are kept for a later compute that goes further), nor those of cycles
-of another length (``reference.spp``) or of the other engine (``TLM_KERNELS``): a line says why (this
-compute's first save replaces them; one that saves none, shorter than :data:`SAVE_SECONDS` with large
-saves, leaves them where they hold more rounds than it: :func:`~tlm.experiments.reference_cache.drop_partial`). (Not
+of another length (``reference.spp``) or of the other engine (``TLM_KERNELS``): a line says why, and that
+they are kept (a warning where no ``say`` is given). None of them can give a compute that stops before their
+last cycle, or makes cycles of another kind, its bits (they hold the state after that cycle alone), so a
+compute never saves over rounds that hold more than its own: not over more cycles of its kind
+(:meth:`Partial.save`), and not over more rounds of another kind (a quick compute of another ``reference.spp``
+after a long one interrupted: its saves begin once it has as many rounds, :meth:`Partial._holds_more`; an
+interrupt before loses its own), and its stored reference leaves them
+(:func:`~tlm.experiments.reference_cache.drop_partial`). (Not
 checked: that tlm's code is the one that saved them, as a cached reference is not: a change of the code
 that changes a reference changes its key, :data:`~tlm.experiments.reference.KEY_VERSION`.) A damaged
 file, or one of another key, is said in one line, removed and computed again; one of another layout
@@ -47,6 +52,7 @@ written): none are kept in the temporary folder, where the reference itself may 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import shutil
@@ -56,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tlm.errors import EnvironmentFailure, InputError
-from tlm.experiments.reference_cache import PARTIAL_VERSION, partial_info, partial_path
+from tlm.experiments.reference_cache import PARTIAL_VERSION, partial_info, partial_path, partial_rounds
 from tlm.kernels.engine import engine
 from tlm.storage import pid_alive, process_tag, warn, write_atomic
 
@@ -119,6 +125,7 @@ class Partial:
         self.off = False  # (a save failed: the cache cannot be written; no more tries)
         self.last = _now()  # (the last save's time, or the compute's start: SAVE_SECONDS)
         self.short = False  # (a folder too full for a save was said)
+        self.rule: tuple[int, int, float] | None = None  # (the compute's stopping rule, as resume was asked: kept)
 
     def _tell(self, line: str, warning: bool = False) -> None:
         if self.say is not None:
@@ -129,6 +136,7 @@ class Partial:
     def resume(self, min_cycles: int, max_cycles: int, tolerance: float) -> Rounds | None:
         """The rounds saved where a compute of that stopping rule resumes from them (the line said), else
         None (a line says why, but where none are saved)."""
+        self.rule = (min_cycles, max_cycles, tolerance)
         try:
             if not (self.path.exists() or self.path.is_symlink()):
                 return None
@@ -156,11 +164,47 @@ class Partial:
         why = self._why_not(info, rounds, min_cycles, max_cycles, tolerance)
         if why is not None:
             self._tell(f"reference {self.key}: not resuming from round {done} of {_whose(info.get('writer'))} "
-                       f"({why}): it is computed from round 1")
+                       f"({why}): it is computed from round 1{self._aside(info, done, max_cycles)}", warning=True)
             return None
         self._tell(f"reference {self.key}: resuming from round {done} of {_whose(info.get('writer'))} "
                    f"({rounds.k} cycles of {self.strata} rounds done in {rounds.seconds:.1f} s, saved in {self.path})")
         return rounds
+
+    def kept(self) -> int:
+        """The rounds the file holds now that this compute, run again (its key, cycles, engine and stopping rule),
+        resumes from (:meth:`resume`), 0 for none: what an interrupted compute says it keeps
+        (:func:`marked`). Its header and errors read, not its mean (a quick read, after a Ctrl-C); its
+        own rounds saved, or those it resumed from, or those another process computing the key saved."""
+        info = partial_info(self.path)
+        rounds = partial_rounds(info)
+        if self.rule is None or not rounds or info.get("version") != PARTIAL_VERSION or info.get("key") != self.key:
+            return 0
+        try:
+            with np.load(self.path, allow_pickle=False) as z:
+                errors = [float(x) for x in np.asarray(z["errors"], dtype=np.float64).reshape(-1)]
+        except Exception:  # (damaged since its header was read, or replaced: whatever numpy or zipfile say)
+            return 0
+        if len(errors) != info["k"] - 1 or self._why_not(info, Rounds(info["k"], errors=errors), *self.rule):
+            return 0
+        return rounds
+
+    def _holds_more(self, info: dict | None, k: int) -> bool:
+        """Whether the saved rounds of header ``info`` (:func:`~tlm.experiments.reference_cache.partial_info`), of
+        this key and layout, are more rounds than ``k`` cycles of this compute's: of another kind (cycles of another
+        length, the other engine), they are kept for the compute that resumes them, not saved over (:meth:`save`)."""
+        return (info is not None and info.get("version") == PARTIAL_VERSION and info.get("key") == self.key
+                and partial_rounds(info) > k * self.strata)
+
+    def _aside(self, info: dict, done: int, max_cycles: int) -> str:
+        """What the line of rounds not resumed adds where they are of another kind (:meth:`_why_not`): that they
+        are kept, and from when this compute's own rounds are saved in their place (:meth:`_holds_more`)."""
+        if info["strata"] == self.strata and info["engine"] == self.kind["engine"]:
+            return ""  # (of this kind: its why says they are kept, and this compute's saves never reach them)
+        if (max_cycles - 1) * self.strata < done:  # (the rounds of its last save: none at its last cycle)
+            return (f"; they are kept, and this compute, of at most {max_cycles * self.strata} rounds, saves none "
+                    "of its own over them (an interrupt computes it from round 1 again)")
+        return (f"; they are kept until this compute has as many rounds ({done}), its own saved in their place from "
+                "then on")
 
     def _why_not(self, info: dict, rounds: Rounds, min_cycles: int, max_cycles: int, tolerance: float) -> str | None:
         if info["strata"] != self.strata:
@@ -219,8 +263,8 @@ class Partial:
         """Save ``rounds`` (atomically), the state at the end of a cycle; but where it is more than
         :data:`SMALL_SAVE` bytes and the last save (or the compute's start) is less than :data:`SAVE_SECONDS`
         ago, where the file holds as many cycles or more of the same kind (another process ahead on the same
-        key), where its folder has too little space left (said once), or where a save failed before (the cache
-        cannot be written)."""
+        key) or more rounds of another kind (:meth:`_holds_more`), where its folder has too little space left
+        (said once), or where a save failed before (the cache cannot be written)."""
         if self.off:
             return
         size = rounds.mean.nbytes + rounds.m2.nbytes + 16 * (len(rounds.errors) + 64)  # (+ headers, roughly)
@@ -230,6 +274,8 @@ class Partial:
         info = partial_info(self.path)
         if (info is not None and all(info.get(f) == v for f, v in self.kind.items())
                 and type(info.get("k")) is int and info["k"] >= rounds.k):
+            return
+        if self._holds_more(info, rounds.k):  # (another kind's rounds, more than these: kept, the resume's line)
             return
         head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": process_tag()})
         try:
@@ -256,3 +302,20 @@ class Partial:
             self.off = True
         else:
             self.last = _now()
+
+
+MARK = "reference_partial"  # an interrupt's attribute: the Partial of the compute it stopped (tlm.cli_report reads it)
+
+
+@contextlib.contextmanager
+def marked(saved: Partial | None):
+    """Around a reference compute's rounds: an interrupt (or any error) that leaves them carries the compute's
+    saved rounds, ``saved``, as its attribute :data:`MARK`, the innermost compute's (a command's line then says
+    how many the cache keeps: :func:`tlm.cli_report.reference_cut_short`, through the API's layers)."""
+    try:
+        yield
+    except BaseException as e:
+        if saved is not None and getattr(e, MARK, None) is None:
+            with contextlib.suppress(Exception):  # (an exception that takes no attribute: said as before)
+                setattr(e, MARK, saved)
+        raise
