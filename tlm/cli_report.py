@@ -83,13 +83,20 @@ def sweep_cut_short(out: Path) -> Iterator[None]:
     points are finished and kept in ``out`` (their rows in ``sweep.jsonl``, those done by an earlier run counted;
     how many failed, which a rerun runs again) and that the same command goes on from there, or that none had
     finished (not a bare ``tlm: interrupted``, which left the user to guess what the folder kept). Said where
-    the sweep noted them (:func:`tlm.experiments.sweep_rows.note_kept`: not where its rows could not be written)."""
+    the sweep noted them (:func:`tlm.experiments.sweep_rows.note_kept`: not where its rows could not be written).
+    A signal before the sweep claimed ``out`` (reading the sweep file and its points, the points done before: a
+    moment for 10^4 of them; starting its workers), its ``sweep.yaml`` as it was (the sweep writes it first), and
+    no earlier run's row there to count, says that no point ran and nothing was written."""
+    before = _marker_state(out)
     try:
         yield
     except BaseException as e:  # (a Ctrl-C, or an error a C extension made of it: errors.interrupted_by)
         kept = getattr(e, "kept_points", None)  # (sweep_rows.KEPT: the CLI reaches the layers through tlm.api only)
-        if kept is None or isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt)
-                                                               or interrupted_by(e) is not None):
+        if isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
+            raise
+        if (kept is None or not kept[0]) and _marker_state(out) == before:  # (not claimed, no earlier row: untouched)
+            raise Interrupted("before any point ran: nothing was written") from e
+        if kept is None:
             raise
         rows, failed, total = kept
         if not rows:
@@ -151,6 +158,17 @@ def _reference_kept(e: BaseException) -> str | None:
                 "the same command computes it from round 1")
     return ("while computing the reference, before its first rounds were saved: the same command computes it "
             "from round 1")
+
+
+def _marker_state(out: Path) -> tuple | bool:
+    """What :func:`sweep_cut_short` compares to tell whether a sweep claimed ``out``: its ``sweep.yaml``'s file
+    (written anew, atomically, as the sweep claims the folder, before anything else there), or whether the
+    folder is there where it has none."""
+    try:
+        st = (out / "sweep.yaml").stat()
+    except (OSError, ValueError):
+        return out.is_dir()
+    return (st.st_dev, st.st_ino, st.st_mtime_ns, st.st_size)
 
 
 @contextmanager

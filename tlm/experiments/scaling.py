@@ -77,6 +77,7 @@ from tlm.experiments.scaling_dated import (  # noqa: F401  (moved; the old names
     sweep_points,
 )
 from tlm.experiments.study import run_study
+from tlm.experiments.sweep_rows import one_row_each
 from tlm.storage import check_destination, distinct_folders, read_jsonl
 
 TARGETS = ("latency", "throughput")
@@ -119,6 +120,7 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
     factors = {str(p.get("hash")): p.get("factors") for p in points}
     rows = [(n, row) for n, row in read_jsonl(rows_path, " (the file is corrupt: rerun 'tlm sweep' into this folder)")
             if not planned or str(row.get("hash")) in planned]
+    rows = one_row_each(rows, lambda t: t[1])  # (a point's later row in place of its earlier: two runs killed)
     if planned and notes is not None and len({str(r.get("hash")) for _, r in rows}) < len(planned):
         done = len({str(r.get("hash")) for _, r in rows})
         notes.append(f"{sweep_dir}: {done} of its {len(planned)} points have a row (the sweep was interrupted or "

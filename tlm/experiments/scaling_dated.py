@@ -15,6 +15,7 @@ import yaml
 
 from tlm.config_words import safe_load  # (yaml.safe_load, its aliases bounded)
 from tlm.errors import InputError
+from tlm.experiments.sweep_rows import one_row_each
 from tlm.storage import read_jsonl
 
 # how sweep_points reads a sweep's sweep.yaml (its data) and sweep.jsonl (its rows); while a report is written, by
@@ -35,6 +36,7 @@ def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:
     points = (spec.get("points") if isinstance(spec, dict) else None) or []
     planned = sorted({str(p.get("hash")) for p in points if isinstance(p, dict)})
     rows = read(sweep_dir / "sweep.jsonl") if (sweep_dir / "sweep.jsonl").is_file() else []
+    rows = one_row_each(rows, lambda t: t[1])  # (a point's later row in place of its earlier: its last run's)
     done = {str(r.get("hash")) for _, r in rows if isinstance(r, dict) and r.get("status") == "ok"
             and (not planned or str(r.get("hash")) in planned)}
     return planned, sorted(h for h in done if (sweep_dir / "points" / h / "results.json").is_file())

@@ -14,7 +14,8 @@ value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an 
 (:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``), and a path of bytes not UTF-8 in a cell
 (a failed point's error naming its folder ``run_\\xff``) with the byte escaped, ``\\xff`` (:func:`csv_cell`).
 A sweep interrupted notes on its interrupt how many of its points' rows its folder keeps (:func:`note_kept`,
-:func:`noting_kept`; before it claimed the folder, an earlier run's rows: :func:`rows_kept`).
+:func:`noting_kept`; before it claimed the folder, an earlier run's rows: :func:`rows_kept`). Whatever reads
+``sweep.jsonl`` back takes each point's row once, its last (:func:`one_row_each`).
 """
 
 from __future__ import annotations
@@ -331,10 +332,29 @@ def rows_kept(out: Path, hashes: Iterable[str]) -> list[dict]:
         text = (out / "sweep.jsonl").read_text(encoding="utf-8", errors="replace")
     except (OSError, ValueError):
         return []
-    wanted, kept = set(hashes), {}
+    wanted, kept = set(hashes), []
     for line in text.splitlines(keepends=True):
         with suppress(ValueError):
             row = json.loads(line) if line.endswith("\n") else None
             if isinstance(row, dict) and isinstance(row.get("hash"), str) and row["hash"] in wanted:
-                kept[row["hash"]] = row
+                kept.append(row)
+    return one_row_each(kept)
+
+
+def one_row_each(rows: Iterable[Any], row: Callable[[Any], Any] = lambda r: r) -> list[Any]:
+    """The rows of a ``sweep.jsonl`` read back (``row``: the row of each of ``rows``, a dict, where they are
+    ``(line, row)`` pairs), each point's once: its last, where its first was. A point has two where a sweep
+    appended its row after the folder already had one: two runs of one sweep sharing the folder (each appends the
+    points it runs, and both may run one) killed before either rewrote the file sorted, or an older tlm's rerun
+    cut short; the later is what the last run of the point found, as a rerun that goes on rewrites it. The one
+    rule of :func:`rows_kept` (an interrupted sweep's count), ``tlm report``'s (:mod:`tlm.report.collect`) and
+    ``tlm scaling``'s (:mod:`tlm.experiments.scaling`, :mod:`tlm.experiments.scaling_dated`). A point is its
+    row's ``hash`` (one per point: :func:`~tlm.experiments.sweep_checks.one_run_one_row`); a row whose hash is
+    no text (a damaged one) is kept as it is, for its reader to judge."""
+    kept: dict[Any, Any] = {}
+    for i, r in enumerate(rows):
+        fields = row(r)
+        h = fields.get("hash") if isinstance(fields, dict) else None
+        key = h if isinstance(h, str) else (i,)  # (a tuple: no hash's text)
+        kept[key] = r
     return list(kept.values())

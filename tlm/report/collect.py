@@ -29,7 +29,8 @@ a sweep point, a study, a sweep) and lists it in :attr:`Inputs.damaged` (the pag
 warnings, a note on stderr), so that one damaged copy does not stop the report of the rest;
 where every tlm output given is damaged, the InputError lists them all and no report is
 written. A sweep row "ok" whose point's ``results.json`` is gone is read as
-``status: missing``; one whose ``results.json`` is damaged, as ``status: damaged``.
+``status: missing``; one whose ``results.json`` is damaged, as ``status: damaged``. A point
+with two rows (two runs of a sweep killed) is read once (:func:`~tlm.experiments.sweep_rows.one_row_each`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from typing import Any
 from tlm import claims
 from tlm.config import MODES
 from tlm.errors import InputError, shell_word
+from tlm.experiments.sweep_rows import one_row_each
 from tlm.experiments.thesis import METRICS, PM_METRICS
 from tlm.report.checks import (  # noqa: F401  (the kinds of value and results.json's keys: importable from here too)
     BOOL,
@@ -620,6 +622,7 @@ def _sweep(inputs: Inputs, folder: Path, labelled: list[tuple[Run, Any]]) -> Non
     planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
     if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
         rows = [r for r in rows if str(r.get("hash")) in planned]
+    rows = one_row_each(rows)  # (a point's later row in place of its earlier: two runs of the sweep killed)
     runs, sweep_runs, damaged = [], [], []
     for i, row in enumerate(rows if (folder / "points").is_dir() else []):  # (rows alone: no results)
         point = folder / "points" / str(row.get("hash"))
