@@ -61,8 +61,10 @@ def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[st
         if ref in names:
             return configs_dir() / f"{ref}.yaml"
         listed = ", ".join(names) if names else "none installed"
+        here = next((f for f in (f"{ref}.yaml", f"{ref}.yml") if Path(f).is_file()), None)
+        hint = (f"; a file {here} is here: tlm {command} {here}" if here else did_you_mean(ref, names))
         raise InputError(f"neither a file nor a built-in experiment (built-in: {listed}; 'tlm config list -l' "
-                         f"says what each one is){did_you_mean(ref, names)}{scene}", source=ref)
+                         f"says what each one is){hint}{scene}", source=ref)
     stem = path.stem if yaml_file else path.name
     builtin_scene = scene_of_path(ref, scenes) if yaml_file else None
     if stem in names and not scene and not builtin_scene:
