@@ -86,19 +86,16 @@ def test_the_run_warns_of_the_glossy_material_until_a_scene_file_replaces_it(tmp
     assert material_warnings(api.load_scene(_scene(tmp_path, mirror))) == []
 
 
-def test_a_pmap_run_of_a_scene_file_without_photons_says_where_to_give_them(tmp_path, cache):
+def test_a_pmap_run_of_a_scene_file_without_photons_says_where_to_give_them(tmp_path, cache, capsys):
     """A scene file written as docs/scenes.md's Keys table allows, without `photons:` (default 0),
     run in pmap mode: the warning said "photons.count is 0" of a config whose photons.count is null,
-    and not where the count goes. It now says the scene file's photons: counts, and how to give it;
-    a config that sets photons.count=0 itself gets the line as before."""
+    and not where the count goes. Since h474 that run is an error before any work (exit 2) naming the scene
+    file and how to give the count; a config that sets photons.count=0 itself gets the line as before."""
     scene = _scene(tmp_path)
-    lines = {}
-    for name, extra in (("null", []), ("zero", ["--set", "photons.count=0"])):
-        out = tmp_path / name
-        assert main(["run", str(scene), "--mode", "pmap", "--out", str(out), "--outputs", "images", "--no-report",
-                     "--no-progress", *extra]) == 0
-        (lines[name],) = [w for w in json.loads((out / "results.json").read_text())["warnings"]
-                          if "photon-map pass" in w]
-    assert "no pmap frame" in lines["null"] and "give the scene file photons: N, or --set photons.count=N" \
-        in lines["null"]
-    assert lines["zero"].endswith("(its passes: rcast)")
+    args = ["--mode", "pmap", "--outputs", "images", "--no-report", "--no-progress"]
+    assert main(["run", str(scene), "--out", str(tmp_path / "null"), *args]) == 2
+    assert "add `photons: N` to the scene file" in capsys.readouterr().err and not (tmp_path / "null").exists()
+    out = tmp_path / "zero"
+    assert main(["run", str(scene), "--out", str(out), *args, "--set", "photons.count=0"]) == 0
+    (line,) = [w for w in json.loads((out / "results.json").read_text())["warnings"] if "photon-map pass" in w]
+    assert line.endswith("(its passes: rcast)")

@@ -43,9 +43,10 @@ def test_scene_and_mesh_paths_not_utf8_shown_as_a_byte(tmp_path, cache, monkeypa
     assert f"extends: scene file 'none.yaml' not found (looked in {tmp_path}/{SHOWN}" in err
     err = _err(capsys, ["scene", "show", f"{DIR}/none.yaml"])
     assert f"scene: scene file '{SHOWN}/none.yaml' not found" in err
-    err = _err(capsys, ["scene", "export", "cornell", f"{DIR}/no/x.obj"])
-    assert f"{SHOWN}/no/x.obj: folder '{SHOWN}/no' does not exist" in err
-    assert not (tmp_path / DIR / "no").exists()
+    (tmp_path / DIR / "afile").write_text("x")
+    err = _err(capsys, ["scene", "export", "cornell", f"{DIR}/afile/no/x.obj"])
+    assert f"{SHOWN}/afile/no/x.obj: folder '{SHOWN}/afile/no' cannot be made: '{SHOWN}/afile' is a file" in err
+    assert not (tmp_path / DIR / "afile").is_dir()
 
 
 def test_a_set_value_with_a_byte_not_utf8_is_kept():

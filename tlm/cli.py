@@ -601,7 +601,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "fit, granularity, error-vs-cost, extreme) and the cornell_pmap run, not the other "
                         "single-scene run configs, and write their report into plots/")
     pl.add_argument("--configs", help="folder of the experiment files (default: ./configs where it exists, else "
-                    "the built-in experiments: 'tlm config list')")
+                    "the built-in experiments: 'tlm config list'); a step whose file NAME.yaml it lacks is skipped, "
+                    "said in a line, unless --only names it")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
     pl.add_argument("--out", type=folder_name, default="plots", help="report folder (default: plots)")
     pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps, of: thesis "

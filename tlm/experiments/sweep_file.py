@@ -413,6 +413,11 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
     description = raw.get("description")
     if description is not None and not isinstance(description, str):
         raise InputError(f"{description!r} is not a string", source=src, key="description")
+    if raw.get("base") is None:  # (as tlm run refuses an empty config: not the defaults by mistake; h474)
+        got = "it is null" if "base" in raw else "none given"
+        raise InputError(f"required ({got}): name the run config the points start from, a file (relative to the "
+                         "sweep file), a built-in one (base: cornell) or a mapping (base: {scene: cornell}; "
+                         "'tlm params' lists the defaults)", source=src, key="base")
     folder = file_folder(path)  # (an anonymous pipe's: the working folder)
     base_file = raw.get("base") if isinstance(raw.get("base"), str) else None
     base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file", scene_keys)

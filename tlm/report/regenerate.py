@@ -13,7 +13,8 @@ through that fit; another (no eq52 folder: ``--only scaling_cornell``) is report
 the sweep it is. The eq52 step fits the scaling folders this command runs or that exist,
 saying which are missing (a folder without a sweep in it, no ``sweep.jsonl``: an interrupted
 or emptied one, is missing, and left out of the report, said); with none of them it is
-refused before any step runs.
+refused before any step runs. A ``configs`` folder of one's own need not hold every step's file: without
+``only``, a step whose file it lacks is skipped with a line (:func:`_present`); one holding none is refused.
 
 A step that exits with status 1 has run and reports failures among its results (a case
 of ``tlm extreme`` that differs from its expectation, a sweep point that failed, a model
@@ -126,6 +127,7 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
         if (runs / n).resolve() in out.resolve().parents:
             raise InputError(f"{quoted(out)} lies in step {n}'s folder under --runs, which the step writes (its "
                              "output there, not the report's); name a folder outside it", key="--out")
+    only = _present(configs, runs, only, say)  # (a step whose file --configs lacks: skipped, said; h474)
     planned = [n for n in names if not only or n in only]
     # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
     # (a missing one is said and left out of the fit; none at all is refused before any step runs)
@@ -188,6 +190,35 @@ def _steps(configs: Path, runs: Path, out: Path, only: list[str] | None, absent:
     if failed:
         raise StepsFailed(page, failed)
     return page
+
+
+def step_files(configs: Path) -> dict[str, Path]:
+    """Each step's experiment file in ``configs`` (``thesis`` -> ``configs/thesis.yaml``); ``eq52`` has none (it
+    fits the scaling sweeps' folders)."""
+    return {name: Path(a.format(configs=configs, runs="")) for name, argv in STEPS for a in argv if "{configs}" in a}
+
+
+def _present(configs: Path, runs: Path, only: list[str] | None, say) -> list[str] | None:
+    """The steps to run: ``only`` where given (a step it names runs, and one whose file is missing stops on the
+    step's bad input, as ever); else every step whose experiment file ``configs`` holds, each other one said in a
+    line and skipped (a researcher's --configs folder of their own studies need not hold every committed one), and
+    eq52 too where no scaling sweep is left to fit (none runs, none under ``runs``). A folder holding none of the
+    files is an InputError before any step runs. None (every step) where every file is there."""
+    files = step_files(configs)
+    missing = [n for n, f in files.items() if not f.exists()]
+    if only or not missing:
+        return only
+    if len(missing) == len(files):
+        raise InputError(f"holds none of the steps' experiment files ({', '.join(f.name for f in files.values())}): "
+                         "name the folder that holds one or more of them", source=str(configs), key="--configs")
+    planned = [n for n, _ in STEPS if n not in missing]
+    for n in missing:
+        say(f"== {n}: skipped: {files[n]} is not there (--configs {configs} lacks it; the report shows its folder "
+            "under --runs where one exists)")
+    if all(s not in planned and not _is_sweep(runs / s) for s in SCALING):
+        planned.remove("eq52")
+        say(f"== eq52: skipped: no scaling sweep to fit ({', '.join(SCALING)} skipped, and none under {runs})")
+    return planned
 
 
 def _is_sweep(folder: Path) -> bool:

@@ -117,8 +117,12 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
     n = tri.shape[0]
     verts = tri.reshape(-1, 3)
     faces = np.arange(3 * n, dtype=np.int64).reshape(n, 3)
-    if not path.parent.is_dir():
-        raise InputError(f"folder {quoted(path.parent)} does not exist", source=str(path))
+    ancestor = path.parent  # (a folder not there yet is made, as run's --out makes its own: h474)
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():  # (a file where a folder on the way should be: the user's path)
+        raise InputError(f"folder {quoted(path.parent)} cannot be made: {quoted(ancestor)} is a file, not a folder",
+                         source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply, .obj or .yaml file", source=str(path))
     scene_file = suffix in (".yaml", ".yml")
@@ -130,6 +134,7 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
     else:
         _check_ours(path, path, "mesh")
     told, bare = _notices(scene)
+    made = _made_folders(path.parent)
     try:
         if suffix == ".ply":
             _write_ply(scene, path, verts, faces, told)
@@ -137,10 +142,11 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
             mesh = path.with_suffix(".obj")
             files = _obj_files(scene, mesh, verts, faces, told)
             write_files([*files, (path, scene_yaml(scene, mesh.name, told))] if scene_file else files)
-    except EnvironmentFailure:
+    except BaseException as e:  # (all or none: the folders made for the files too, on a signal as well)
+        _unmade(made)
+        if isinstance(e, OSError) and not isinstance(e, EnvironmentFailure):  # (/proc, a special file system)
+            raise EnvironmentFailure(f"cannot write it ({e.strerror or e})", source=str(path)) from None
         raise
-    except OSError as e:  # (a folder that takes no files: /proc, a special file system)
-        raise EnvironmentFailure(f"cannot write it ({e.strerror or e})", source=str(path)) from None
     from tlm.scenes.meshes import shown_path
 
     for mesh in bare:  # (a mesh's licence may ask for its notice with every copy: said, not dropped silently)
@@ -148,6 +154,37 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
              "file of it beside it (COPYRIGHT*, LICENSE*, LICENCE*) and none in its header; if its licence asks for "
              "one with every copy, add it beside the exported files")
     return scene
+
+
+def _made_folders(folder: Path) -> list[Path]:
+    """Make ``folder`` and those above it that are not there yet; the ones made, outermost first (an
+    EnvironmentFailure where the machine refuses one: read-only, not permitted)."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    made: list[Path] = []
+    for one in reversed(missing):
+        try:
+            one.mkdir()
+        except FileExistsError:  # (another process made it meanwhile: not ours to remove)
+            continue
+        except OSError as e:
+            _unmade(made)
+            raise EnvironmentFailure(f"cannot make the folder {quoted(one)} ({e.strerror or e})",
+                                     source=str(one)) from None
+        made.append(one)
+    return made
+
+
+def _unmade(made: list[Path]) -> None:
+    """Remove the folders :func:`_made_folders` made (innermost first) where they are still empty: an export
+    that wrote nothing leaves nothing."""
+    for one in reversed(made):
+        try:
+            one.rmdir()
+        except OSError:
+            return
 
 
 def used_materials(scene: Scene) -> Scene:
