@@ -38,6 +38,7 @@ a killed writer, are entries of their own (``leftover``).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -229,26 +230,59 @@ def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache
     return cache
 
 
+def partial_info(path: Path) -> dict | None:
+    """The header (``info``) of the rounds saved of a reference at ``path`` (``references/<key>.partial.npz``,
+    :mod:`tlm.experiments.reference_resume`), or None where there are none, it is no regular file (a FIFO is not
+    waited on) or it cannot be read. The one reader of it below the experiments (:func:`partial_state`, and
+    :mod:`tlm.experiments.reference_cache` through it). A look at the header is no use of the file: its access
+    time is left as it was (``O_NOATIME``, else set back), or ``tlm cache``'s listing, which reads it, made it
+    used now (a prune's ``--older-than`` then kept a stale one, and one listed before a prune was kept as "used
+    meanwhile")."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        try:
+            fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
+        except PermissionError:  # (O_NOATIME: the owner's alone)
+            fd = os.open(path, flags)
+    except OSError:
+        return None
+    try:
+        before = os.fstat(fd)
+        if not stat.S_ISREG(before.st_mode):
+            return None
+        import numpy as np  # (tlm cache's other commands do without it)
+
+        with open(fd, "rb", closefd=False) as fh, np.load(fh, allow_pickle=False) as z:
+            info = json.loads(str(z["info"][()]))
+        if os.fstat(fd).st_atime_ns != before.st_atime_ns and os.utime in os.supports_fd:
+            with contextlib.suppress(OSError):  # (not the owner's: its access time is the system's)
+                os.utime(fd, ns=(before.st_atime_ns, before.st_mtime_ns))  # (a partial is replaced, never written)
+    except Exception:  # (a damaged file, whatever numpy, zipfile or json make of it: none)
+        return None
+    finally:
+        os.close(fd)
+    return info if isinstance(info, dict) else None
+
+
+def partial_rounds(info: dict | None) -> int:
+    """The rounds that saved rounds' header ``info`` (:func:`partial_info`) says they hold: its cycles times its
+    rounds a cycle; 0 where it says no whole positive numbers (none, or a damaged header)."""
+    k, strata = (info or {}).get("k"), (info or {}).get("strata")
+    return k * strata if type(k) is int and type(strata) is int and k > 0 and strata > 0 else 0
+
+
 def partial_state(path: Path, written: float, now: float) -> tuple[int | None, str, bool]:
     """What the rounds saved of a reference (``references/<key>.partial.npz``, last written at ``written``) are,
-    by their header: ``(rounds, words, computing)``: the rounds it holds (its cycles times their rounds; None where
-    it cannot be read: a damaged file, or another tlm's layout), what ``tlm cache`` says of it after ``partial:``
-    (``24 rounds saved by an interrupted compute``), and whether a live process of this machine other than this
-    one saved it under :data:`BUSY_SECONDS` ago (``now``): a compute at work, whose file is a write in progress
-    (the compute saves it again at its next save)."""
-    try:
-        import numpy as np
-
-        with np.load(path, allow_pickle=False) as z:
-            info = json.loads(str(z["info"][()]))
-    except Exception:  # (a damaged file, whatever numpy, zipfile or json make of it)
-        info = None
-    info = info if isinstance(info, dict) else {}
-    k, strata, writer = info.get("k"), info.get("strata"), info.get("writer")
-    if not (type(k) is int and type(strata) is int and k > 0 and strata > 0):
+    by their header (:func:`partial_info`): ``(rounds, words, computing)``: the rounds it holds (its cycles times
+    their rounds; None where it cannot be read: a damaged file, or another tlm's layout), what ``tlm cache`` says of
+    it after ``partial:`` (``24 rounds saved by an interrupted compute``), and whether a live process of this
+    machine other than this one saved it under :data:`BUSY_SECONDS` ago (``now``): a compute at work, whose file is
+    a write in progress (the compute saves it again at its next save)."""
+    info = partial_info(path) or {}
+    rounds, writer = partial_rounds(info), info.get("writer")
+    if not rounds:
         return None, ("its rounds cannot be read (a damaged file, or another tlm's: the next compute of its key says "
                       "which)"), False
-    rounds = k * strata
     if (isinstance(writer, str) and writer != process_tag() and now - written < BUSY_SECONDS
             and _live_writer(writer)):
         return rounds, f"{rounds} rounds saved so far by process {writer.rpartition('-')[2]}, computing it now", True

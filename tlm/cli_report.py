@@ -156,6 +156,20 @@ def _reference_kept(e: BaseException) -> str | None:
     if saved.off:  # (its one line said the cache cannot be written: tlm.caches)
         return ("while computing the reference: none of its rounds are kept (the cache cannot be written); "
                 "the same command computes it from round 1")
+    try:
+        held = saved.others()  # (another compute's rounds of the key in the file, which this one does not resume)
+    except Exception:
+        held = 0
+    where = path_shown(saved.path)
+    if saved.saved:  # (its rounds were in the file, and are no longer: another compute's in their place, or none)
+        gone = (f"were replaced by another compute's {held} rounds, which the same command does not resume" if held
+                else "are gone (removed since)")
+        return (f"while computing the reference: its {saved.saved} rounds saved in {where} {gone}; the same "
+                "command computes it from round 1")
+    if held and saved.held_off:  # (a save it would have made waits for more rounds than those: Partial.save)
+        return (f"while computing the reference, before its first rounds were saved (the {held} rounds kept in "
+                f"{where} are another compute's, which it does not resume nor save over with fewer: remove the file "
+                "to save its own): the same command computes it from round 1")
     return ("while computing the reference, before its first rounds were saved: the same command computes it "
             "from round 1")
 

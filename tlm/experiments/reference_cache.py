@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.cache_admin import partial_info, partial_rounds  # (the one reader of a partial's header, re-exported)
 from tlm.caches import cache_problem, cache_root, cached_image, file_digest
 from tlm.config import RunConfig
 from tlm.errors import EnvironmentFailure, InputError, shell_word
@@ -287,23 +288,6 @@ def partial_path(key: str) -> Path:
     """Where the rounds of a compute of reference ``key`` are saved at the end of its cycles, beside its
     entry (:mod:`tlm.experiments.reference_resume`): ``references/<key>.partial.npz``."""
     return cache_dir() / f"{key}{PARTIAL}"
-
-
-def partial_info(path: Path) -> dict | None:
-    """The header (``info``) of the saved rounds at ``path``, or None where there are none or it cannot be read."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            info = json.loads(str(z["info"][()]))
-    except Exception:  # (a damaged file, whatever numpy, zipfile or json make of it: none)
-        return None
-    return info if isinstance(info, dict) else None
-
-
-def partial_rounds(info: dict | None) -> int:
-    """The rounds that saved rounds' header ``info`` (:func:`partial_info`) says they hold: its cycles times its
-    rounds a cycle; 0 where it says no whole positive numbers (none, or a damaged header)."""
-    k, strata = (info or {}).get("k"), (info or {}).get("strata")
-    return k * strata if type(k) is int and type(strata) is int and k > 0 and strata > 0 else 0
 
 
 def drop_partial(key: str, meta: dict) -> None:

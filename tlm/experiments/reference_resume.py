@@ -126,6 +126,8 @@ class Partial:
         self.last = _now()  # (the last save's time, or the compute's start: SAVE_SECONDS)
         self.short = False  # (a folder too full for a save was said)
         self.rule: tuple[int, int, float] | None = None  # (the compute's stopping rule, as resume was asked: kept)
+        self.saved = 0  # (the rounds of this compute's last save: kept() 0 after one, they were replaced)
+        self.held_off = False  # (a save not made: more rounds of another kind in the file, _holds_more)
 
     def _tell(self, line: str, warning: bool = False) -> None:
         if self.say is not None:
@@ -168,6 +170,7 @@ class Partial:
             return None
         self._tell(f"reference {self.key}: resuming from round {done} of {_whose(info.get('writer'))} "
                    f"({rounds.k} cycles of {self.strata} rounds done in {rounds.seconds:.1f} s, saved in {self.path})")
+        self.saved = done  # (its rounds in the file now: kept() says them, or that they were replaced)
         return rounds
 
     def kept(self) -> int:
@@ -188,6 +191,15 @@ class Partial:
             return 0
         return rounds
 
+    def others(self) -> int:
+        """The rounds of this key the file holds now that this compute, run again, does not resume (:meth:`kept`
+        0): another compute's, of another ``reference.spp``, the other engine, or cycles past where this one's
+        rule stops, which its saves do not replace until it has more (:meth:`save`); 0 for none."""
+        info = partial_info(self.path)
+        if info is None or info.get("version") != PARTIAL_VERSION or info.get("key") != self.key:
+            return 0
+        return partial_rounds(info)
+
     def _holds_more(self, info: dict | None, k: int) -> bool:
         """Whether the saved rounds of header ``info`` (:func:`~tlm.experiments.reference_cache.partial_info`), of
         this key and layout, are more rounds than ``k`` cycles of this compute's: of another kind (cycles of another
@@ -202,7 +214,8 @@ class Partial:
             return ""  # (of this kind: its why says they are kept, and this compute's saves never reach them)
         if (max_cycles - 1) * self.strata < done:  # (the rounds of its last save: none at its last cycle)
             return (f"; they are kept, and this compute, of at most {max_cycles * self.strata} rounds, saves none "
-                    "of its own over them (an interrupt computes it from round 1 again)")
+                    f"of its own over them (an interrupt computes it from round 1 again; remove {self.path} to "
+                    "save its own)")
         return (f"; they are kept until this compute has as many rounds ({done}), its own saved in their place from "
                 "then on")
 
@@ -276,6 +289,7 @@ class Partial:
                 and type(info.get("k")) is int and info["k"] >= rounds.k):
             return
         if self._holds_more(info, rounds.k):  # (another kind's rounds, more than these: kept, the resume's line)
+            self.held_off = True
             return
         head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": process_tag()})
         try:
@@ -302,6 +316,7 @@ class Partial:
             self.off = True
         else:
             self.last = _now()
+            self.saved = rounds.k * self.strata
 
 
 MARK = "reference_partial"  # an interrupt's attribute: the Partial of the compute it stopped (tlm.cli_report reads it)
