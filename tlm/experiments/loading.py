@@ -116,18 +116,15 @@ def check_photons_given(scene: Scene, cfg: RunConfig, source: str | None = None)
     ``photons:`` (or 0), where the pass would otherwise run (lights with power, a Lambertian surface). Said before
     the BSP is built or a ray cast, not as a warning after a run that renders no pmap frame and exits 0 (h474). A
     config's own ``photons.count: 0`` leaves the pass out on purpose, as before (the run warns of it)."""
-    import re
-
-    from tlm.experiments.run_warnings import _COUNT_HINT
+    from tlm.experiments.run_warnings import BUILTIN_COUNTS
     from tlm.render.planner import plan
 
     if cfg.mode != "pmap" or cfg.photons.count is not None or scene.photons:
         return
     if not any(p.name == "pmap" and not p.run and p.by == "photons.count" for p in plan(scene, cfg).passes):
         return
-    figures = re.search(r" \(the built-in scenes give [^)]*\)", _COUNT_HINT)  # (one place: test_count_hint_lead66)
     raise InputError(
         "mode 'pmap' asks for the photon-map pass, but the scene file gives no photons (no photons:, or 0) and the "
         "config's photons.count is null, so no photon would be traced and the run would have no pmap frame: add "
         "`photons: N` to the scene file, or `photons: {count: N}` to the config (--set photons.count=N)"
-        + (figures.group(0) if figures else ""), source=scene.source or source, key="photons")
+        + f" {BUILTIN_COUNTS}", source=scene.source or source, key="photons")

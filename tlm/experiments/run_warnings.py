@@ -90,9 +90,9 @@ def left_out_warnings(plan, cfg: RunConfig) -> list[str]:
 
 
 # (a null photons.count takes the scene file's photons:, 0 where it gives none: say where to give it)
+BUILTIN_COUNTS = "(the built-in scenes give 20000 to 480000: cornell 120000, conference 200000)"
 _COUNT_HINT = ("; the config's photons.count is null, so the scene file's photons: counts, and it gives 0 or "
-               "none: give the scene file photons: N, or --set photons.count=N (the built-in scenes give 20000 to "
-               "480000: cornell 120000, conference 200000)")
+               f"none: give the scene file photons: N, or --set photons.count=N {BUILTIN_COUNTS}")
 
 
 def threads_warning(cfg: RunConfig | None, cpus: int | None = None) -> list[str]:
