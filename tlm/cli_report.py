@@ -86,7 +86,9 @@ def sweep_cut_short(out: Path) -> Iterator[None]:
     the sweep noted them (:func:`tlm.experiments.sweep_rows.note_kept`: not where its rows could not be written).
     A signal before the sweep claimed ``out`` (reading the sweep file and its points, the points done before: a
     moment for 10^4 of them; starting its workers), its ``sweep.yaml`` as it was (the sweep writes it first), and
-    no earlier run's row there to count, says that no point ran and nothing was written."""
+    no earlier run's row there to count, says that no point ran and nothing was written; one that stopped the
+    reference ``--reference`` computes then (before the folder is claimed too), with no such row, says what
+    :func:`reference_cut_short` says, the rounds the cache keeps (not that nothing was written: h471)."""
     before = _marker_state(out)
     try:
         yield
@@ -94,6 +96,8 @@ def sweep_cut_short(out: Path) -> Iterator[None]:
         kept = getattr(e, "kept_points", None)  # (sweep_rows.KEPT: the CLI reaches the layers through tlm.api only)
         if isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
             raise
+        if (kept is None or not kept[0]) and (line := _reference_kept(e)) is not None:  # (a compute stopped)
+            raise Interrupted(line) from e
         if (kept is None or not kept[0]) and _marker_state(out) == before:  # (not claimed, no earlier row: untouched)
             raise Interrupted("before any point ran: nothing was written") from e
         if kept is None:

@@ -25,6 +25,7 @@ from tlm.storage_lock import _host
 # The files of tlm.claims.sharing in a sweep's folder (its lock, and one per running sweep): here, below both
 # tlm.storage (which skips them) and tlm.claims (which writes them), so that neither imports the other
 _GUARD = ".tlm-lock"
+LOCK_NAME = _GUARD  # (the lock's name, for the layers above: a sweep's rows are written under it)
 _RUNNING = ".tlm-running-"
 
 

@@ -131,7 +131,6 @@ from tlm.experiments.sweep_reference import (
     unmeasured_line,
 )
 from tlm.experiments.sweep_rows import columns, forget_worker_events, keep_worker_events, point_row, write_rows
-from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
 from tlm.storage import check_destination, claim_folder
@@ -362,7 +361,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                     # the rows of this sweep's points done already, in place of an earlier sweep's: while
                     # it runs (and when it is cut short) the folder's rows are this sweep's only
                     _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records],
-                                sweep.factors)
+                                sweep)
                     _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped,
                               lambda p, record: _row(p, record, sweep))
                     lost = pool.lost() if isinstance(pool, DaskPool) else []  # (a worker that left with points)
@@ -388,7 +387,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
         rows = [_row(p, records[p.hash], sweep) for p in sweep.points]
-        _write_rows(out, rows, sweep.factors)
+        _write_rows(out, rows, sweep)
     with _kept.noting_kept(lambda: rows, len(rows)):  # (an interrupt now: every row written, the line says them)
         computed = [r for r in rows if r["hash"] in tasks]
         failed = sum(r["status"] != "ok" for r in computed)
@@ -504,7 +503,7 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
             records[h] = rec
     kept = [p for p in sweep.points if p.hash in records]
     with suppress(OSError, InputError):
-        _write_rows(out, [_row(p, records[p.hash], sweep) for p in kept], sweep.factors)
+        _write_rows(out, [_row(p, records[p.hash], sweep) for p in kept], sweep)
         return [records[p.hash] for p in kept]
     return None
 
@@ -552,13 +551,12 @@ def _keep_workers(out: Path, pool, records: dict[str, dict], sweep: str) -> None
         keep_worker_events(out, pool.watch.worker_events(records), sweep)
 
 
-def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:
-    """The sweep's rows (:func:`~tlm.experiments.sweep_rows.write_rows`); with no row, which would
-    name them, its ``factors`` name the CSV's factor columns."""
-    if rows:
-        write_rows(out, rows)
-    else:
-        write_rows(out, rows, factors)
+def _write_rows(out: Path, rows: list[dict], sweep) -> None:
+    """The ``sweep``'s rows (:func:`~tlm.experiments.sweep_rows.write_rows`, under the rows' lock, another run's of
+    its points kept: h471); with no row, which would name them, its factors name the CSV's factor columns."""
+    with _kept.rows_held(out):
+        rows = [*rows, *_kept.others_rows(out, rows, {p.hash: p.index for p in sweep.points})]
+        write_rows(out, rows) if rows else write_rows(out, rows, sweep.factors)
 
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],
@@ -597,8 +595,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         bar = progress_bar(progress, eta_after=SWEEP_ETA_AFTER, total=total, initial=skipped, unit="point",
                            desc="sweep")
         failed = 0
-        _trim_torn(out / "sweep.jsonl")
-        with storage.appending(out / "sweep.jsonl") as jsonl:  # (a full disk: a line naming it, not a bare ENOSPC)
+        with _kept.Appender(out) as jsonl:  # (under the rows' lock, the file opened anew: h471; a full disk named)
             while futures:
                 checkpoint()  # (a signal whose interrupt got lost stops the sweep here: its workers too, below)
                 if isinstance(pool, (InProcess, LocalPool)):

@@ -13,6 +13,9 @@ with an ok point's columns whatever the points' outcome (:func:`columns`), and a
 value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
 (:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``), and a path of bytes not UTF-8 in a cell
 (a failed point's error naming its folder ``run_\\xff``) with the byte escaped, ``\\xff`` (:func:`csv_cell`).
+Two runs of one sweep sharing its folder write ``sweep.jsonl`` under one lock (:func:`rows_held`): each row
+appended to the file the path names then (:class:`Appender`), never to one another run's rewrite replaced, and a
+rewrite keeping the rows of finished points another run appended (:func:`write_rows`'s ``points``).
 A sweep interrupted notes on its interrupt how many of its points' rows its folder keeps (:func:`note_kept`,
 :func:`noting_kept`; before it claimed the folder, an earlier run's rows: :func:`rows_kept`). Whatever reads
 ``sweep.jsonl`` back takes each point's row once, its last (:func:`one_row_each`).
@@ -22,11 +25,13 @@ from __future__ import annotations
 
 import csv
 import datetime
+import fcntl
 import io
 import json
 import math
+import os
 import re
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
@@ -35,6 +40,7 @@ from tlm import storage
 from tlm.errors import error_line, interrupted_by
 from tlm.experiments.sweep_file import Point
 from tlm.storage_json import escaped
+from tlm.storage_live import LOCK_NAME
 
 FIRST_COLUMNS = ("point", "hash", "status", "error")
 RAN_COLUMNS = ("worker", "host", "pid")  # who ran a point (its record's ``ran``: dask_workers.ran_here), after its
@@ -171,7 +177,7 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
     cells alike (a list or mapping as JSON, a number that is not finite empty, as null), but for
     a factor's null value (a key of ``factors``, or of a :class:`Row`'s own): ``null``
     (:func:`csv_cell`), which an empty cell (a field the row does not have: a failed point's
-    ``fps``) would not tell apart.
+    ``fps``) would not tell apart. A running sweep writes them under the rows' lock (:func:`rows_held`).
 
     Where either write fails (a full disk, any error), ``sweep.csv`` is removed and the error goes on: the CSV there
     would contradict ``sweep.jsonl``, the rows just written or those a sweep appended since the CSV was
@@ -190,6 +196,101 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
         with suppress(OSError):
             (out / "sweep.csv").unlink(missing_ok=True)
         raise
+
+
+def others_rows(out: Path, rows: list[dict], points: Mapping[str, int]) -> list[dict]:
+    """The rows of ``out``'s ``sweep.jsonl`` that a sweep's rewrite of it keeps beside its own ``rows`` (read under
+    the rows' lock, :func:`rows_held`): each of a point of the sweep (``points``: hash -> index) that ``rows`` has
+    not, ``ok``, its folder's ``results.json`` there (another run of the sweep sharing the folder finished the
+    point since this one read the folder: its row stays, not lost till that run ends); a point's last such row.
+    Not kept: a failed row (the point runs again), another sweep's, one whose folder is gone."""
+    have = {r.get("hash") for r in rows}
+    return [r for r in rows_kept(out, set(points) - have)
+            if r.get("status") == "ok" and r.get("point") == points.get(r["hash"])
+            and (out / "points" / r["hash"] / "results.json").is_file()]
+
+
+@contextmanager
+def rows_held(out: Path) -> Iterator[None]:
+    """The lock under which a sweep writes ``out``'s ``sweep.jsonl`` (and ``sweep.csv``): an exclusive ``flock`` on
+    the folder's guard (``.tlm-lock``, :func:`tlm.claims.sharing`'s, there while a sweep holds the folder; made
+    where missing). Two runs of one sweep sharing the folder: one's rewrite (an atomic rename) and the other's
+    append are never at once, and an append opens the file the path names then (:class:`Appender`). A folder
+    whose file system locks nothing (or a guard that cannot be opened): written unlocked, as before."""
+    fd = None
+    with suppress(OSError):
+        while fd is None:
+            got = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(got, fcntl.LOCK_EX)
+            except BaseException:  # (no locks there; an interrupt while waiting)
+                os.close(got)
+                raise
+            fd = got if _same_file(got, out / LOCK_NAME) else os.close(got)  # (removed meanwhile: opened again)
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)  # (releases the lock)
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the file open as ``fd``."""
+    try:
+        return os.path.samestat(os.stat(path), os.fstat(fd))
+    except OSError:
+        return False
+
+
+class Appender:
+    """A running sweep's appends to ``out``'s ``sweep.jsonl``: the rows written (:meth:`write`) are appended at each
+    :meth:`flush`, under the rows' lock (:func:`rows_held`), to the file the path names then, opened anew (another
+    run of the sweep may have rewritten it since, an atomic rename: appended to the file it replaced, the rows
+    were lost from ``sweep.jsonl`` till this run ended, and for good where it was killed), after cutting off a
+    last row left half written (a run killed while appending). A point's rows cost the end of the file only, not
+    a read of it: 10^4 points append 10^4 times. Its open, writes and close name the file where they fail
+    (:func:`tlm.storage.appending`: a full disk's one line)."""
+
+    def __init__(self, out: Path):
+        self.path, self._text = Path(out) / "sweep.jsonl", []
+
+    def __enter__(self) -> Appender:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._text = []  # (what no flush appended: nothing)
+
+    def write(self, text: str) -> None:
+        self._text.append(text)
+
+    def flush(self) -> None:
+        data, self._text = "".join(self._text), []
+        if not data:
+            return
+        with rows_held(self.path.parent):
+            trim_torn(self.path)
+            with storage.appending(self.path) as f:
+                f.write(data)
+                f.flush()
+
+
+def trim_torn(path: Path, block: int = 65536) -> None:
+    """Cut off a last row left half written (a sweep killed while writing it), so that the rows appended next
+    start on a line of their own: the end of the file read only (its last line, block by block from the end)."""
+    with suppress(FileNotFoundError), storage.naming(path), open(path, "rb+") as f:
+        end = at = f.seek(0, os.SEEK_END)
+        f.seek(max(0, end - 1))
+        if not end or f.read(1) == b"\n":
+            return
+        while at > 0:
+            start = max(0, at - block)
+            f.seek(start)
+            i = f.read(at - start).rfind(b"\n")
+            if i >= 0:
+                f.truncate(start + i + 1)
+                return
+            at = start
+        f.truncate(0)
 
 
 def csv_text(rows: Iterable[dict], columns: Iterable[str] = (), values: Iterable[str] = ()) -> str:
@@ -284,15 +385,6 @@ def forget_worker_events(out: Path, sweep: str) -> None:
     with storage.folder_lock(out):
         if kept_worker_events(out, sweep) is None:
             (out / WORKERS_FILE).unlink(missing_ok=True)
-
-
-def trim_torn(path: Path) -> None:
-    """Cut off a last row left half written (a sweep killed while writing it), so that the
-    rows appended next start on a line of their own."""
-    with suppress(FileNotFoundError), storage.naming(path), open(path, "rb+") as f:
-        data = f.read()
-        if data and not data.endswith(b"\n"):
-            f.truncate(data.rfind(b"\n") + 1)
 
 
 KEPT = "kept_points"  # the attribute of a sweep's interrupt that says what its folder kept (note_kept)
