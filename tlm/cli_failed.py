@@ -73,9 +73,12 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
 
 
 def _out_of_memory(e: BaseException) -> bool:
-    """Whether ``e`` is a shortage of memory (its line says ``out of memory``)."""
+    """Whether ``e`` is a shortage of memory (its line says ``out of memory``) or of threads (``no new
+    thread could be started``: under ``ulimit -v`` a thread's stack that could not be mapped; the pool's
+    calls still in flight, joined at the interpreter's exit, went on loading kernels and ended the
+    process after tlm's line in LLVM's abort or a segmentation fault)."""
     try:
-        return isinstance(e, MemoryError) or memory_problem(e) is not None
+        return isinstance(e, MemoryError) or memory_problem(e) is not None or thread_problem(e) is not None
     except MemoryError:
         return True
 

@@ -245,10 +245,20 @@ def result(future: Future):
         try:
             return future.result(timeout=0.5)
         except TimeoutError:
-            ran = getattr(future, "_tlm_thread", ())
-            if ran and not ran[0].is_alive() and not future.done():
-                raise (_LOST.pop() if _LOST else RuntimeError(f"the kernel thread {ran[0].name} ended without "
-                                                              "finishing its call")) from None
+            if future.done():  # (the call's own TimeoutError, a disk's ETIMEDOUT: raised as it came, not waited on)
+                return future.result()
+            ran, pool = getattr(future, "_tlm_thread", ()), getattr(future, "_tlm_pool", None)
+            workers = () if ran or pool is None else set(getattr(pool, "_threads", ()))  # (none left to run it)
+            if ((ran and not ran[0].is_alive()) or (workers and not any(t.is_alive() for t in workers))) \
+                    and not future.done():
+                with _POOLS_LOCK:  # (the pool let go: a later call gets live threads, not a queue none reads)
+                    for n in [n for n, p in _POOLS.items() if p is pool]:
+                        del _POOLS[n]
+                future.cancel()
+                with contextlib.suppress(Exception):
+                    pool.shutdown(wait=False)
+                raise (_LOST.pop() if _LOST else RuntimeError("the kernel threads ended without finishing a call")) \
+                    from None
 
 
 _POOL_THREADS = "tlm-kernel-"  # the start of the pools' threads' names
@@ -266,7 +276,7 @@ def _submit(pool: ThreadPoolExecutor, fn: Callable, *args) -> Future:
         except BaseException:  # (refused, "cannot schedule new futures after shutdown": no call in flight)
             _BUSY -= 1
             raise
-    future._tlm_thread = ran
+    future._tlm_thread, future._tlm_pool = ran, pool
     future.add_done_callback(_uncount_cancelled)
     return future
 
