@@ -8,13 +8,15 @@ that is the user's (:func:`carry_over`): one of a name the output does not own (
 its folders, one the old listing does not name (``images/my_annotated.png``), in a folder the old output wrote or
 not (one a user made, one an earlier carry made); and a file the old output wrote that is no longer as written
 (another size or modification time: an annotated ``images/pmap.png``, a hand-edited ``results.json``), at the
-top too. What the old listing names as written is the output's (removed with the old folder, or replaced);
-:data:`WHOLE` (``report``, which ``tlm report`` writes after the run) is replaced whole. A listing of paths alone
-(a tlm's before sizes and times were listed) tells no edited file, and an owned file at the top is the output's,
-listed or not, as it was. An old folder with no listing (deleted; a tlm's older than listings) tells nothing of
-its folders: what the new output writes there is the output's, unsaid; the rest of them is kept, and a warning
-names it (:func:`unlisted_line`: some may be an earlier output's, such as the AOVs of a run that wrote them, for
-the user to remove; none is removed as one); an owned file at the top is the output's.
+top too; in a folder copied without its times (no listed file has its time: :func:`untimed`), another size.
+What the old listing names as written is the output's (removed with the old folder, or replaced); :data:`WHOLE`
+(``report``, which ``tlm report`` writes after the run) is replaced whole. A listing of paths alone (a tlm's
+before sizes and times were listed) tells no edited file, and an owned file at the top is the output's, listed or
+not, as it was. An old folder with no listing (deleted; a tlm's older than listings) tells nothing of
+its folders: what the new output writes there is the output's, unsaid; the rest of them is kept (a folder the
+new output does not write at all, whole), and a warning names it (:func:`unlisted_line`: some may be an earlier
+output's, such as the AOVs of a run that wrote them, for the user to remove, which a report may take for the new
+output's: a run's ``radiance/``; none is removed as one); an owned file at the top is the output's.
 
 The listing decides membership only: the paths moved are those of the folder's own entries (``os.listdir``),
 never one the listing names, so a damaged or edited listing (``../x``, ``/etc``) moves or removes nothing outside
@@ -42,7 +44,7 @@ SHOWN = 5  # the paths a lost_line names (and how many more)
 # a file's line of a listing: its path, size and modification time (ns), a tab before each; a folder's is its path
 _FILE_LINE = re.compile(rb"(.+)\t([0-9]+)\t(-?[0-9]+)", re.DOTALL)
 
-Stamp = tuple[int, int]  # a file's size and modification time (ns), as its listing gives them
+Stamp = tuple[int, int | None]  # a file's size and modification time (ns) as listed (None: not compared, untimed)
 
 
 def write_listing(tmp: Path, write: Callable[[Path, bytes], None]) -> None:
@@ -92,15 +94,35 @@ def listed(out: Path) -> dict[str, Stamp | None] | None:
 
 def changed(path: Path, stamp: Stamp | None) -> bool:
     """Whether the file at ``path`` that its output listed with ``stamp`` is no longer as written: another size or
-    modification time, or a folder now (the user's, then). A folder's path, one listed with no stamp, or one gone:
-    False."""
+    modification time (where the stamp gives one: :func:`untimed`), or a folder now (the user's, then). A folder's
+    path, one listed with no stamp, or one gone: False."""
     if stamp is None:
         return False
     try:
         st = os.lstat(path)
     except OSError:
         return False
-    return stat.S_ISDIR(st.st_mode) or (st.st_size, st.st_mtime_ns) != stamp
+    return stat.S_ISDIR(st.st_mode) or st.st_size != stamp[0] or stamp[1] not in (None, st.st_mtime_ns)
+
+
+def untimed(out: Path, names: dict[str, Stamp | None]) -> dict[str, Stamp | None]:
+    """``names`` (``out``'s listing) with no file's time to compare where no file it lists that is still there has
+    its listed time: a folder copied without its times (``cp -r``, an archive's, a file system of coarser times),
+    every file of it "changed". Its files are then told by their sizes alone (an edit of the same size is not told);
+    else ``names`` as they are. An ``lstat`` of each listed file, until one has its time."""
+    there = False
+    for path, stamp in names.items():
+        if stamp is not None:
+            try:
+                st = os.lstat(out / path)
+            except OSError:
+                continue
+            if st.st_mtime_ns == stamp[1]:
+                return names
+            there = True
+    if not there:
+        return names
+    return {path: None if stamp is None else (stamp[0], None) for path, stamp in names.items()}
 
 
 def real_dir(path: Path) -> bool:
@@ -123,6 +145,8 @@ def carry_over(out: Path, tmp: Path, owned: Collection[str], moved: list[str], l
         return []
     names = listed(out)
     stamped = names is not None and any(names.values())  # (a listing of stamps, not of paths alone: a tlm's before)
+    if names is not None and stamped:
+        names = untimed(out, names)
     unlisted: list[str] = []
     for name in entries:
         if name == LISTING or OURS.match(name):
@@ -133,9 +157,9 @@ def carry_over(out: Path, tmp: Path, owned: Collection[str], moved: list[str], l
                     continue  # (an owned file as the output wrote it, or with no listing of stamps: the output's)
             elif name in WHOLE and (names is None or name not in names):
                 continue  # (a report's: replaced whole)
-            elif names is None:  # (a folder of an output with no listing: the new output's paths are its own)
-                first = len(moved)
-                _carry(out, tmp, name, {name: None}, moved, [])
+            elif names is None:  # (a folder of an output with no listing: the new output's paths are its own;
+                first = len(moved)  # one it does not write at all is kept whole, and named so)
+                _carry(out, tmp, name, {name: None} if real_dir(tmp / name) else {}, moved, [])
                 unlisted.extend(moved[first:])
                 continue
         _carry(out, tmp, name, names or {}, moved, lost)
@@ -214,4 +238,5 @@ def unlisted_line(out: Path, kept: list[str]) -> str:
 
     return (f"{out} has no {LISTING} (deleted, or written by a tlm older than it), which tells tlm's files from "
             f"yours: {listing(map(quoted, kept), named=SHOWN)}, which this output does not write, "
-            f"{'was' if len(kept) == 1 else 'were'} kept as yours (remove any an earlier output wrote)")
+            f"{'was' if len(kept) == 1 else 'were'} kept as yours (remove any an earlier output wrote: a report "
+            f"may take it for this output's)")
