@@ -20,6 +20,7 @@ import pytest
 
 import tlm.kernels.threads
 from tlm import api, config
+from tlm.api_common import granularity_study
 from tlm.cli import _reference_command, main
 from tlm.errors import InputError
 
@@ -175,8 +176,9 @@ def test_a_study_file_is_read_once_and_its_kind_named_as_before(tmp_path, reads,
             "error-vs-cost": lambda p: api.error_vs_cost(p, tmp_path / "o"),
             "calibrate": lambda p: api.calibrate(p)}[command]
     wanted = STUDIES.get(command, "a thesis study file (tlm calibrate fits the programs to a thesis study's scenes)")
+    more = f"; to measure its packet sizes, {granularity_study(cornell)}" if command == "granularity" else ""  # (h473)
     assert _error(lambda: call(cornell)) == (f"{cornell}: a run config (it has scene:), not {wanted}: run it with "
-                                             f"tlm run {cornell}")
+                                             f"tlm run {cornell}{more}")
     study = tmp_path / "s.yaml"  # (its own: read once, its own error after the read)
     study.write_text("base: {resolution: [8, 8]}\nnot_a_key: 1\n")
     assert "not_a_key: unknown key" in _error(lambda: call(study))

@@ -14,6 +14,7 @@ import tlm
 from tlm.cli import main
 from tlm.experiments import run as runs
 from tlm.experiments import run_warnings
+from tlm.experiments.reference_cache import rounds_advice
 
 SMALL = {"mode": "rcast", "resolution": [16, 16], "render.spp": 1, "render.light_samples": 1,
          "arch.packet_size": 16, "arch.frames": 2}
@@ -80,8 +81,9 @@ def test_a_reference_not_converged_is_a_warning(tmp_path, capsys, cache):
     assert error["available"] and error["reference_converged"] is False and error["reference_rounds"] == 4
     line = (f"the photon-map reference {error['reference']} is NOT converged (4 rounds, relative standard error "
             f"{error['reference_standard_error']:.4f}, reference.tolerance 1e-06): the pmap error against it "
-            "(error.rmse, error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with "
-            "'tlm reference'")
+            "(error.rmse, error.rel_mse) includes its noise; raise reference.max_rounds"
+            f"{rounds_advice(error['reference_standard_error'], 4, cfg.settings.reference)} and compute it again with "
+            "'tlm reference'")  # (h473: the rounds that would reach the tolerance)
     assert [w for w in results["warnings"] if "NOT converged" in w] == [line]
     assert json.loads((tmp_path / "r" / "results.json").read_text())["warnings"] == results["warnings"]
     res = runs.render(cfg.settings, cfg.base, cfg.label)  # (the cached reference now)

@@ -395,6 +395,18 @@ def _sweep_again(raw: dict, path: Path) -> str:
             f"to read it: tlm report {folder}")
 
 
+GRANULARITY_SIZES = [1, 16, 256, 4096]  # (the sizes the study file tlm granularity's error on a run config shows)
+
+
+def granularity_study(path: Path) -> str:
+    """The words that give the two-line study file measuring the run config ``path``'s packet sizes (h473:
+    ``tlm granularity`` takes a study file, whose ``base`` names the run config, relative to the study file)."""
+    name = Path(path).name
+    base = name if re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.+-]*", name) else json.dumps(name)
+    return (f"write a study file of two lines beside it, 'base: {base}' and 'packet_sizes: "
+            f"{json.dumps(GRANULARITY_SIZES)}', and run tlm granularity on that file")
+
+
 def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     """An :class:`InputError` naming the command to use when the keys of the file ``path``
     (its data ``raw``) say clearly it is for another command than ``tlm COMMAND``
@@ -425,6 +437,8 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if kind == "sweep record":
         raise InputError(f"{KIND_NAMES[kind]} (tlm: {raw['tlm']}), not {wanted}: {_sweep_again(raw, path)}",
                          source=str(path))
+    if command == "granularity" and kind == "run" and not save:  # (h473: the study file that measures it)
+        use += f"; to measure its packet sizes, {granularity_study(path)}"
     if command == "calibrate" and kind != "thesis":
         wanted += " (tlm calibrate fits the programs to a thesis study's scenes)"
     raise InputError(f"{KIND_NAMES[kind]} (it has {', '.join(f'{k}:' for k in keys)}), not {wanted}: {use}",

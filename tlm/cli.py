@@ -346,7 +346,8 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     # (the seconds of a computation; none computed: the cached one was found, its rounds run by an earlier command)
     took = f" in {time.perf_counter() - t0:.1f} s" if made.computed else ", found cached (nothing computed)"
     print(f"{state} after {meta['rounds']} rounds ({err}){took}; {where}"
-          + ("" if ok else " (raise reference.max_rounds, or reference.tolerance; exit status 1)"))
+          + ("" if ok else " (raise reference.max_rounds"  # (h473: how far, estimated)
+             f"{made.advice}, or reference.tolerance; exit status 1)"))
     return 0 if ok else 1  # (a result to act on, as a failed sweep point or extreme case is)
 
 

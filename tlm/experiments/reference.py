@@ -81,6 +81,7 @@ from tlm.experiments.reference_cache import (
     load_reference,
     meets_tolerance,
     npy_digest,
+    rounds_advice,  # (h473: re-exported; in reference_cache, which run_warnings may import)
     save_reference,
     store_reference,
     verdict,
@@ -536,6 +537,12 @@ class Made:
         (:func:`meets_tolerance` of ``meta`` and ``settings``; not its own ``converged`` flag)."""
         return meets_tolerance(self.meta, self.settings)
 
+    @property
+    def advice(self) -> str:
+        """The rounds that would reach the tolerance, estimated from ``meta`` (:func:`rounds_advice`: `` to about 648
+        (...)``; empty where it meets it or nothing is known): what ``tlm reference``'s line says to raise."""
+        return rounds_advice(self.meta.get("relative_standard_error"), self.meta.get("rounds"), self.settings)
+
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
                    say=None, progress=None, bar: bool = False, overrides: tuple[str, ...] = (),
@@ -581,7 +588,9 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
         if kind == "repeats":
             say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, "
                          f"{repeats_why(cached[1], settings)}, so it is kept (raise reference.max_rounds above "
-                         f"{cached[1].get('rounds')}, or use --force to compute it again)"))
+                         f"{cached[1].get('rounds')}"
+                         f"{rounds_advice(cached[1].get('relative_standard_error'), cached[1].get('rounds'), settings)}"
+                         ", or use --force to compute it again)"))
             return Made(key, settings, cached[1], False, cache_dir() / key, line, cached[0])
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     frame = load_frame(cfg, scene=scene)

@@ -39,14 +39,14 @@ import os
 import stat
 import tempfile
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 
 from tlm.cache_admin import partial_info, partial_rounds  # (the one reader of a partial's header, re-exported)
 from tlm.caches import cache_problem, cache_root, cached_image, file_digest
-from tlm.config import RunConfig
+from tlm.config import ReferenceConfig, RunConfig
 from tlm.errors import EnvironmentFailure, InputError, shell_word
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder
@@ -176,6 +176,27 @@ RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
 def cycle_length(settings: ReferenceSettings) -> int:
     """Rounds per cycle: ``spp``, at most half of ``max_rounds`` (two cycles measure a spread)."""
     return max(1, min(settings.spp, settings.max_rounds // 2))
+
+
+def rounds_advice(rse, rounds, settings) -> str:
+    """The clause ``" to about N (...)"`` that follows "raise reference.max_rounds" in a line on a reference
+    whose relative standard error ``rse``, after ``rounds`` rounds, misses ``settings.tolerance`` (a
+    :class:`ReferenceSettings` or ``cfg.reference``): the standard error falls as 1/sqrt(rounds), so about
+    rounds x (rse / tolerance)^2 rounds reach it, rounded up to whole cycles (:func:`cycle_length`); an
+    estimate, the rse being measured (h473). Empty where that is no more rounds than ``rounds`` or either is unknown."""
+    if (not isinstance(rse, (int, float)) or isinstance(rse, bool) or not math.isfinite(rse) or rse <= 0
+            or not isinstance(rounds, int) or rounds < 1 or rse <= settings.tolerance):
+        return ""
+    need = math.ceil(rounds * (rse / settings.tolerance) ** 2)
+    strata = cycle_length(replace(settings, max_rounds=max(need, settings.max_rounds)))
+    need = -(-need // strata) * strata
+    how = (f"{rounds} rounds x ({rse:.4f} / {settings.tolerance:g})^2 in whole cycles of {strata}: the relative "
+           "standard error falls as 1/sqrt(rounds)")
+    limit = next(f.metadata["max"] for f in fields(ReferenceConfig) if f.name == "max_rounds")
+    if need > limit:  # (a number reference.max_rounds refuses: the tolerance is the one to change)
+        return f" (about {need:.3g} rounds would reach the tolerance, {how}; past its limit {limit}: raise " \
+               "reference.tolerance instead)"
+    return f" to about {need} ({how})" if need > rounds else ""
 
 
 def repeats(meta: dict, settings: ReferenceSettings) -> bool:

@@ -517,6 +517,8 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
     run's ``emitted`` photons and the scene's (``scene_photons``, what a null ``reference.photons``
     takes), the lines of :func:`blur_warnings` on a reference much blurrier than the run (or a k-NN run much
     blurrier than it)."""
+    from tlm.experiments.reference_cache import rounds_advice  # (h473: the rounds that may reach the tolerance)
+
     blur = blur_warnings(error, cfg, emitted, scene_photons)
     if not (error and error.get("available")) or error.get("reference_converged"):
         return blur
@@ -525,8 +527,8 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
                                                        if isinstance(rounds, int) and rounds < ref.min_rounds else "")
     return [f"the photon-map reference {error['reference']} is NOT converged ({rounds} rounds, relative standard "
             f"error {'n/a' if rse is None else f'{rse:.4f}'}, {rule}): the pmap error against it (error.rmse, "
-            "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'",
-            *blur]
+            f"error.rel_mse) includes its noise; raise reference.max_rounds{rounds_advice(rse, rounds, ref)} and "
+            "compute it again with 'tlm reference'", *blur]
 
 
 # a photon map's kernel past this many times the area of the other's (h453, per map since h465): the reference's

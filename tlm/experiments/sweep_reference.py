@@ -206,7 +206,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     points to run need for its duration (:func:`hold_references`), so that a ``tlm cache prune`` meanwhile, or a
     cache that could not take one computed now, costs no point its error."""
     from tlm.errors import EnvironmentFailure
-    from tlm.experiments.reference import make_reference, repeats_why
+    from tlm.experiments.reference import make_reference, repeats_why, rounds_advice
     from tlm.experiments.reference_cache import RULE, cache_dir, describe, load_reference, verdict
 
     say = say or (lambda line: None)
@@ -255,7 +255,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         measured = "they are" if n != 1 else "it is"
         say(f"sweep --reference: reference {key}, which {they}, is cached with {describe(meta, settings)}{why}, so "
             f"it is kept, not computed again, and {measured} measured against it (raise reference.max_rounds above "
-            f"{meta.get('rounds')}, or compute it again with 'tlm reference --force')"
+            f"{meta.get('rounds')}{rounds_advice(meta.get('relative_standard_error'), meta.get('rounds'), settings)}, "
+            "or compute it again with 'tlm reference --force')"
             + _asked_line(settings, asked, "judged") + _judged(meta, asked))
     lines = []
     cached = None  # (the last one read: hold's alone, where it is held, freed once written: hold_references)
