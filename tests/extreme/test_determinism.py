@@ -122,8 +122,8 @@ def npz(path: Path) -> dict[str, tuple[str, tuple, bytes]]:
 
 def assert_same_folder(a: Path, b: Path, host: tuple[str, ...] = HOST_FIELDS) -> None:
     """Every file of ``a`` and ``b`` equal: bytes, except ``results.json`` (JSON without
-    the host fields) and ``.npz`` archives (their arrays bitwise: a zip member carries
-    the time it was written)."""
+    the host fields), ``.npz`` archives (their arrays bitwise: a zip member carries
+    the time it was written) and ``.tlm-written`` (its paths alone)."""
     fa, fb = files(a), files(b)
     assert list(fa) == list(fb)
     for name, pa in fa.items():
@@ -133,8 +133,15 @@ def assert_same_folder(a: Path, b: Path, host: tuple[str, ...] = HOST_FIELDS) ->
             assert without(ra, host) == without(rb, host), name
         elif pa.suffix == ".npz":
             assert npz(pa) == npz(pb), name
+        elif pa.name == ".tlm-written":  # (each file's size and time, h464: its paths compared; the files are)
+            assert _paths(pa) == _paths(pb), name
         else:
             assert pa.read_bytes() == pb.read_bytes(), name
+
+
+def _paths(listing: Path) -> list[str]:
+    """The paths a run's ``.tlm-written`` lists (less each file's size and time: results.json's host fields)."""
+    return [line.split("\t")[0] for line in listing.read_text().splitlines()]
 
 
 def check_references(caches: list[Path]) -> None:

@@ -36,11 +36,13 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
     InputError), its BSP (``bsp.levels``, ``bsp.memory_factor``) and the frame the passes
     render. ``timer``: gets the stages ``load_scene`` and ``build_bsp``; ``bar``: a
     progress bar whose description names the BSP build while it runs; ``scene``: the
-    scene when the caller loaded it already (to look up a cache before building)."""
+    scene when the caller loaded it already (to look up a cache before building). A pmap run that nothing gives
+    photons is an InputError once the scene is loaded, before its BSP (:func:`check_photons_given`)."""
     timer = Timer() if timer is None else timer
     if scene is None:
         with timer.stage("load_scene"):
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
+    check_photons_given(scene, cfg, source)  # (a pmap run that nothing gives photons: before the BSP; h474)
     if bar is not None:
         bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)

@@ -49,7 +49,7 @@ from tlm.config_words import dump_yaml, with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean, shell_word
 from tlm.experiments.dask_workers import ran_here
 from tlm.experiments.error_cost_clock import CompileClock
-from tlm.experiments.loading import check_photons_given, load_frame
+from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, scene_identity, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error
 from tlm.experiments.reference_cache import load_reference, meets_tolerance
@@ -65,7 +65,6 @@ from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, overflow_line, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, photon_count, plan
 from tlm.render.pmap import radii
-from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Light, Scene
 from tlm.storage import atomic_folder, check_destination, json_text, warn
 
@@ -212,8 +211,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     again; ``timer``: the result's host seconds start from it (that load's stage);
     ``overrides`` and ``via``: the result's (:class:`RenderResult`), what its warnings name. A scene it loads
     gets its ``scene_digest``: :func:`~tlm.experiments.provenance.scene_identity` of the files the load read, from
-    the digests the load computed (a scene given is not digested: None). A pmap run that nothing gives photons is an
-    InputError once the scene is loaded, before its BSP (:func:`~tlm.experiments.loading.check_photons_given`).
+    the digests the load computed (a scene given is not digested: None).
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
@@ -222,12 +220,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
         timer = Timer() if timer is None else timer
         with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar, \
                 noting_reads() as reads:
-            loaded = scene
-            if loaded is None:
-                with timer.stage("load_scene"):
-                    loaded = load_scene(cfg.scene, base, cfg.resolution, config_source)
-            check_photons_given(loaded, cfg, config_source)  # (a pmap run without photons: before the BSP; h474)
-            frame = load_frame(cfg, base, config_source, timer, bar, scene=loaded)
+            frame = load_frame(cfg, base, config_source, timer, bar, scene=scene)
         digest = None
         if scene is None and frame.scene.source:  # (of the load's stage: its files' digests, most of them reused)
             with timer.stage("load_scene"):
