@@ -14,7 +14,7 @@ caustics, and says so):
 * the Refract composite (direct light, mirrors and glass; no indirect light) and the PMap
   composite (plus the two photon maps): relative MSE (sum of squared error over sum of
   squared truth, as ``tlm error-vs-cost``, away from the lights seen directly or as
-  highlights in mirrors and glass: :func:`tlm.oracle.mitsuba.away_from_lights`) and mean
+  highlights in mirrors and glass: :func:`tlm.oracle.mitsuba.truth_mask`) and mean
   HDR-FLIP over the whole image;
 * on Cornell, the PMap composite against Mitsuba's path tracer *at equal wall time*: our
   render's host seconds (``render``, without the timing simulation), Mitsuba at the spp
@@ -210,7 +210,7 @@ def main() -> None:
               + (f" (+ {meta['ptracer']['seconds']:.0f} s ptracer, {meta['ptracer_pixels']:.0%} of the pixels)"
                  if light_traced else ""))
         row = {"scene": name, "size": f"{cam.width}x{cam.height}", "truth_spp": truth_spp}
-        keep = om.away_from_lights(sees_a_light(pmap.frame, pmap.gbuffer).reshape(cam.height, cam.width))
+        keep = om.truth_mask(pmap.frame, sees_a_light(pmap.frame, pmap.gbuffer).reshape(cam.height, cam.width))
         row["compared"] = float(keep.mean())
         for label, res, secs in (("refract", refract, t_refract), ("pmap", pmap, t_pmap)):
             img = res.composite

@@ -379,9 +379,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     truth_image, truth_meta = truth.load(frame0, g, note)
     keep = None
     if truth_image is not None:
-        from tlm.oracle.mitsuba import away_from_lights
+        from tlm.oracle.mitsuba import truth_mask
 
-        keep = away_from_lights(sees_a_light(frame0, g).reshape(truth_image.shape[:2]))
+        keep = truth_mask(frame0, sees_a_light(frame0, g).reshape(truth_image.shape[:2]))  # (h472: a pixel's square)
         truth_meta["pixels_compared"] = float(keep.mean())
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
@@ -399,6 +399,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     geometry = TreeWork.of(accel.tree)
     clock = CompileClock()
     warm = WarmUp(frame0, g, clock)
+    dominated: list[int] = []  # (the point whose truth error one pixel carried: said for the first alone)
 
     def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
         i, point, cfg = item
@@ -439,6 +440,13 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         fn = frame_functional(frame, g, geometry, others, traced, work, fg_work)
         rest = others[_others_key(frame.cfg, _own_passes(fn.passes))]
         composite = sum((rad for rad, _ in rest.values()), np.zeros_like(radiance)) + radiance
+        if truth_image is not None and not dominated:  # (one pixel carrying the truth error: said once, h472)
+            from tlm.oracle.mitsuba import dominant_pixel
+
+            line = dominant_pixel(composite.reshape(truth_image.shape), truth_image, keep)
+            if line is not None:
+                dominated.append(i)
+                say(f"error-vs-cost: point {i}: {line}")
         t0 = time.perf_counter()
         tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
         simulate_s = time.perf_counter() - t0

@@ -118,7 +118,7 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
                 flip: bool = True) -> dict[str, float | None]:
     """The composite's RMSE, relative MSE (sum of squared error over sum of squared truth, as
     ``rel_mse`` against our reference) over the pixels ``keep`` ((height, width) bool: away
-    from the lights seen directly, :func:`tlm.oracle.mitsuba.away_from_lights`) and mean
+    from the lights seen directly or across the pixel's square, :func:`tlm.oracle.mitsuba.truth_mask`) and mean
     HDR-FLIP over the whole image (:func:`tlm.oracle.mitsuba.flip`: ``flip_evaluator``'s HDR mode, its
     exposure range from the truth, ACES tone mapper, 67 pixels per degree; None where ``flip`` is
     False: :func:`flip_missing`), against the ground truth (None without one)."""

@@ -97,3 +97,26 @@ def ray_cast_pixels(frame, g) -> np.ndarray:
     light = ndimage.binary_dilation((~g.every(~g.sees_emitter)).reshape(shape))
     specular = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] > 0)
     return ~light & g.every(~specular).reshape(shape)
+
+
+def light_footprint(frame, supersample: int = 4) -> np.ndarray:
+    """(height, width) bool: the pixels whose square shows a light, directly or as a highlight
+    in a mirror or glass, looked at through ``supersample x supersample`` eye rays on a grid
+    of sub-pixel centres (:func:`tlm.render.passes.sees_a_light` of that finer camera, one ray
+    each). Mitsuba's film box-filters the whole square, so a highlight a pixel's few jittered
+    samples miss is in the truth all the same (h472: on CornellBox-Sphere at 40x30, the light
+    in the mirror sphere at one pixel, 4.10 in the truth, 0.06 in ours, 98% of the error); a
+    light region the grid misses lies between its rays, narrower than 1/supersample of a pixel.
+    """
+    from tlm.render.frame import cast
+    from tlm.render.passes import sees_a_light
+
+    if supersample < 1:
+        raise ValueError(f"supersample must be >= 1, got {supersample}")
+    cam = frame.scene.camera
+    s = supersample
+    big = replace(cam, width=cam.width * s, height=cam.height * s)
+    fine = replace(frame, scene=replace(frame.scene, camera=big),
+                   cfg=replace(frame.cfg, render=replace(frame.cfg.render, spp=1)))
+    g = cast(fine, np.arange(big.width * big.height, dtype=np.int64), record=False)
+    return sees_a_light(fine, g).reshape(cam.height, s, cam.width, s).any(axis=(1, 3))

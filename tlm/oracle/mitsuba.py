@@ -466,6 +466,37 @@ def away_from_lights(sees_light: np.ndarray) -> np.ndarray:
     return ~ndimage.binary_dilation(np.asarray(sees_light, dtype=bool), structure=np.ones((3, 3), dtype=bool))
 
 
+def truth_mask(frame, sees_light: np.ndarray, supersample: int = 4) -> np.ndarray:
+    """:func:`away_from_lights` of the pixels our eye rays see a light at (``sees_light``) and of
+    those whose whole square shows one (:func:`tlm.oracle.masks.light_footprint`): what Mitsuba's
+    box filter sees of a highlight our few samples miss is left out too (h472)."""
+    from tlm.oracle.masks import light_footprint
+
+    seen = np.asarray(sees_light, dtype=bool) | light_footprint(frame, supersample)
+    return away_from_lights(seen)
+
+
+DOMINANT_SHARE = 0.5  # one pixel carrying more than this share of the squared error is named
+
+
+def dominant_pixel(test, reference, keep) -> str | None:
+    """A warning line where one pixel of ``keep`` carries more than :data:`DOMINANT_SHARE` of the
+    summed squared error of ``test`` against ``reference`` (the relative MSE is then that pixel's,
+    not the image's), naming it (x, y) with both values; else None."""
+    t, r = _pair(test, reference)
+    keep = np.asarray(keep, dtype=bool)
+    err = np.where(keep, ((t - r) ** 2).sum(axis=-1), 0.0)
+    total = float(err.sum())
+    if not total > 0:
+        return None
+    y, x = np.unravel_index(int(np.argmax(err)), err.shape)
+    share = float(err[y, x]) / total
+    if share <= DOMINANT_SHARE:
+        return None
+    return (f"one pixel, (x {x}, y {y}), carries {share:.0%} of the squared error against the truth (truth "
+            f"{float(r[y, x].mean()):.4g}, ours {float(t[y, x].mean()):.4g}): the relative MSE is mostly that pixel's")
+
+
 PTRACER_FACTOR = 4  # light paths per pixel of the particle tracer, per sample of the path tracer
 
 
