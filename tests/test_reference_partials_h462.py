@@ -24,6 +24,8 @@ from tlm.experiments.reference_cache import ReferenceSettings, partial_info, par
 from tlm.experiments.reference_resume import Partial, Rounds
 from tlm.storage import process_tag
 
+from .test_reference_resume_h454 import _rounds  # (one stand-in)
+
 # cycles of 2 rounds, at most 6 of them; a tolerance no cycle meets: all 12 rounds
 REF = {"photons": 500, "k_nearest": 8, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 12, "spp": 2}
 CONFIG = {"scene": "cornell", "mode": "pmap", "resolution": [4, 4], "photons": {"count": 500}, "reference": REF}
@@ -33,20 +35,6 @@ def _frame(**ref):
     frame = load_frame(config_from_dict({**CONFIG, "reference": {**REF, **ref}}))
     settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
     return frame, settings, reference.reference_key(frame.scene, frame.cfg, settings)
-
-
-def _rounds(monkeypatch, stop_at: int | None = None) -> list[int]:
-    """``reference_round`` counted (the calls list), raising KeyboardInterrupt at call ``stop_at``."""
-    real, calls = reference.reference_round, []
-
-    def counted(*a, **k):
-        calls.append(1)
-        if len(calls) == stop_at:
-            raise KeyboardInterrupt
-        return real(*a, **k)
-
-    monkeypatch.setattr(reference, "reference_round", counted)
-    return calls
 
 
 def _long_one_interrupted(monkeypatch) -> tuple:

@@ -17,8 +17,10 @@ import os
 from pathlib import Path
 
 from tlm.cli import main
-from tlm.storage import atomic_folder
 from tlm.storage_carry import LISTING, lost_line, unlisted_line
+
+from .test_review_h456 import _files
+from .test_review_h456 import _output as _output456
 
 CORNELL = str(Path(__file__).resolve().parents[1] / "configs" / "cornell.yaml")
 RUN = ["run", CORNELL, "--set", "resolution=[8,8]", "--no-report", "--no-progress"]
@@ -26,16 +28,7 @@ RUN = ["run", CORNELL, "--set", "resolution=[8,8]", "--no-report", "--no-progres
 
 def _output(out: Path, files: dict[str, str], owned=("m", "t.json", "images", "aov", "report")) -> None:
     """An output of ``files`` (``m``, the marker, among them) written into ``out`` by :func:`atomic_folder`."""
-    with atomic_folder(out, "m", owned=owned) as tmp:
-        for rel, text in files.items():
-            (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-            (tmp / rel).write_text(text)
-
-
-def _files(folder: Path) -> dict[str, str]:
-    """Every file under ``folder`` (its listing left out) and its text, by its path relative to it."""
-    return {p.relative_to(folder).as_posix(): p.read_text() for p in sorted(folder.rglob("*"))
-            if p.is_file() and p.name != LISTING}
+    _output456(out, files, owned)
 
 
 def _edit(path: Path, text: str) -> None:
