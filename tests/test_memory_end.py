@@ -81,3 +81,15 @@ def test_a_kernel_thread_that_ended_without_its_result_is_an_error_not_a_wait_fo
                           env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=60)
     assert proc.returncode == 0 and proc.stdout.strip() == "raised: no memory to set the outcome", proc
     assert "Traceback" not in proc.stderr and "Exception in worker" not in proc.stderr, proc.stderr
+
+
+def test_an_out_of_memory_error_said_off_the_main_thread_ends_nothing():
+    """exit_status of the process's own command (argv None) on another thread: its line and 1, the process left
+    running (before: _memory_end read an exit status until_exit had not recorded there, an IndexError)."""
+    import threading
+
+    got: list = []
+    worker = threading.Thread(target=lambda: got.append(cli_failed.exit_status(MemoryError("x"), None)))
+    worker.start()
+    worker.join()
+    assert got == [1]

@@ -17,6 +17,7 @@ from __future__ import annotations
 import gc
 import os
 import signal
+import threading
 import traceback
 from contextlib import suppress
 from typing import TYPE_CHECKING
@@ -67,7 +68,8 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
     if argv is not None:
         return status
     status = cli_signals.until_exit(status)
-    if status == 1 and _out_of_memory(e):
+    if status == 1 and cli_signals._EXIT and threading.current_thread() is threading.main_thread() \
+            and _out_of_memory(e):  # (the process's own, on its main thread: until_exit registered the end)
         _memory_end(e)
     return status
 

@@ -31,18 +31,20 @@ from tlm.scenes.model import Scene
 
 
 def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = None,
-               timer: Timer | None = None, bar=None, scene: Scene | None = None) -> Frame:
+               timer: Timer | None = None, bar=None, scene: Scene | None = None, check_photons: bool = False) -> Frame:
     """``cfg``'s scene (relative paths from ``base``; ``source`` names the config in an
     InputError), its BSP (``bsp.levels``, ``bsp.memory_factor``) and the frame the passes
     render. ``timer``: gets the stages ``load_scene`` and ``build_bsp``; ``bar``: a
     progress bar whose description names the BSP build while it runs; ``scene``: the
     scene when the caller loaded it already (to look up a cache before building). A pmap run that nothing gives
-    photons is an InputError once the scene is loaded, before its BSP (:func:`check_photons_given`)."""
+    photons is an InputError once the scene is loaded, before its BSP, with ``check_photons`` (a run's, a reference's
+    of no photons: :func:`check_photons_given`; not an error-vs-cost study's base, whose points give the count)."""
     timer = Timer() if timer is None else timer
     if scene is None:
         with timer.stage("load_scene"):
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
-    check_photons_given(scene, cfg, source)  # (a pmap run that nothing gives photons: before the BSP; h474)
+    if check_photons:  # (a pmap run that nothing gives photons: before the BSP; h474)
+        check_photons_given(scene, cfg, source)
     if bar is not None:
         bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)

@@ -226,7 +226,7 @@ _LOST: list[BaseException] = []  # what ended a worker of the pools (a MemoryErr
 def _lost(record: logging.LogRecord) -> bool:
     """concurrent.futures' "Exception in worker" of a pool's thread (its traceback, printed on
     stderr): kept for :func:`result` to raise, not printed. Others' records pass."""
-    if record.threadName.startswith(_POOL_THREADS) and record.exc_info and record.exc_info[1] is not None:
+    if (record.threadName or "").startswith(_POOL_THREADS) and record.exc_info and record.exc_info[1] is not None:
         _LOST.append(record.exc_info[1])
         return False
     return True
