@@ -17,6 +17,7 @@ from __future__ import annotations
 import gc
 import os
 import signal
+import sys
 import threading
 import traceback
 from contextlib import suppress
@@ -117,7 +118,7 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
     if broken:  # the reader of stdout (or stderr) went away (``| head``): nothing more to say
         for name in broken:  # so that the exit's flush does not fail again
             with suppress(Exception):
-                cli_streams._to_devnull(getattr(__import__("sys"), name).fileno())
+                cli_streams._to_devnull(getattr(sys, name).fileno())
         return 128 + signal.SIGPIPE
     if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError; inside
         # a C extension's call into Python, one that made it an error of its own: nanobind's TypeError)
