@@ -78,6 +78,7 @@ def test_a_memory_error_is_out_of_memory_on_one_line(capsys):
 
 def test_a_broken_pipe_not_of_stdout_or_stderr_is_not_a_reader_gone(capsys, monkeypatch):
     """(A worker's pipe: an error of its own, with its traceback kept, not a quiet 141.)"""
+    monkeypatch.setattr(cli_streams, "_GONE", {})  # (not a stream an earlier test of this worker left gone)
     monkeypatch.setattr(cli_streams, "_reader_gone", lambda fd: False)
     assert cli_failed.exit_status(BrokenPipeError(32, "Broken pipe"), ["run"]) == 1
     assert "BrokenPipeError" in capsys.readouterr().err

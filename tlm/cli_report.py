@@ -17,7 +17,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
-from tlm.errors import EnvironmentFailure, interrupted_by, path_shown, quoted, shell_word
+from tlm.errors import EnvironmentFailure, chain, interrupted_by, path_shown, quoted, shell_word
 
 
 def say_err(line: str) -> None:
@@ -135,13 +135,10 @@ def _stopped_compute(e: BaseException | None):
     stopped, or an error of its chain of causes and contexts did: its attribute ``reference_partial``
     (``reference_resume.MARK``, set as it left the rounds; the CLI reaches that layer through tlm.api only). None
     where it stopped none."""
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen:
-        seen.add(id(e))
-        found = getattr(e, "reference_partial", None)
+    for c in chain(e):
+        found = getattr(c, "reference_partial", None)
         if found is not None:
             return found
-        e = e.__cause__ or e.__context__
     return None
 
 

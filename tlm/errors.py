@@ -16,7 +16,7 @@ import difflib
 import errno
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 try:  # (imported now: under a small ``ulimit -v`` loading it later, as a command fails, may fail too)
@@ -208,6 +208,18 @@ def environment_problem(e: BaseException, filename: bool = True) -> str | None:
     return None
 
 
+def chain(e: BaseException | None) -> Iterator[BaseException]:
+    """``e``'s chain of causes and contexts, ``e`` first: each exception, then its ``__cause__`` or, where it has
+    none, its ``__context__``, and so on, each once: the walk stops where the chain ends (``None``) or comes back
+    to an exception it gave (a loop of contexts). ``e`` None gives none. The next link is read as the walk goes on
+    past an exception, after its caller's turn with it (:func:`settle_landed` marks each as it comes)."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        yield e
+        e = e.__cause__ or e.__context__
+
+
 UNMAPPED = "failed to map segment from shared object"  # the dynamic loader's words for a library it could not map
 
 
@@ -220,13 +232,9 @@ def memory_problem(e: BaseException | None) -> str | None:
     module imported late, as matplotlib's for a report) is out of memory too. None where the
     chain holds none. The machine's fault, not tlm's: one line, exit status 1, as a full disk."""
     limit = address_space_limit()
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen and not isinstance(e, MemoryError):
-        if limit is not None and isinstance(e, (ImportError, OSError)) and UNMAPPED in str(e):
-            break
-        seen.add(id(e))
-        e = e.__cause__ or e.__context__
-    if e is None or id(e) in seen:
+    e = next((c for c in chain(e) if isinstance(c, MemoryError) or (
+        limit is not None and isinstance(c, (ImportError, OSError)) and UNMAPPED in str(c))), None)
+    if e is None:
         return None
     text = " ".join(str(e).split())
     line = f"out of memory: {text}" if text else "out of memory"
@@ -244,13 +252,7 @@ def thread_problem(e: BaseException | None) -> str | None:
     limits that can refuse one where they are set: the address space (``ulimit -v``: each thread's
     stack is mapped in it) and the user's processes and threads (``ulimit -u``); None where the
     chain holds none. The machine's fault, not tlm's: one line, exit status 1, as out of memory."""
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen:
-        if isinstance(e, RuntimeError) and str(e) == THREAD_REFUSED:
-            break
-        seen.add(id(e))
-        e = e.__cause__ or e.__context__
-    else:
+    if not any(isinstance(c, RuntimeError) and str(c) == THREAD_REFUSED for c in chain(e)):
         return None
     limits = []
     space = address_space_limit()
@@ -301,13 +303,10 @@ def settle_landed(e: BaseException | None) -> None:
     """As a command's block ends with ``e`` (:func:`tlm.cli_signals.signals`), before its frames are let go
     (:func:`forget_landed`): each exception of ``e``'s chain that is a signal's interrupt made into an error of
     its own (:func:`_made_of_interrupt`) is marked so, for :func:`interrupted_by` after the block."""
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen:
-        seen.add(id(e))
-        if _made_of_interrupt(e):
+    for c in chain(e):
+        if _made_of_interrupt(c):
             with contextlib.suppress(AttributeError, TypeError):  # (an exception that takes no attribute)
-                setattr(e, _MARK, True)
-        e = e.__cause__ or e.__context__
+                setattr(c, _MARK, True)
 
 
 def _made_of_interrupt(e: BaseException) -> bool:
@@ -356,14 +355,11 @@ def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:
     interrupt only in its message (nanobind's ``TypeError: could not export nb::ndarray: ...
     KeyboardInterrupt``, FLIP's ``evaluate`` importing a module); a new KeyboardInterrupt is
     returned for it. None where the chain holds neither: ``e`` is an error of its own."""
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen:
-        if isinstance(e, KeyboardInterrupt):
-            return e
-        if getattr(e, _MARK, False) is True or _made_of_interrupt(e):
+    for c in chain(e):
+        if isinstance(c, KeyboardInterrupt):
+            return c
+        if getattr(c, _MARK, False) is True or _made_of_interrupt(c):
             return KeyboardInterrupt()
-        seen.add(id(e))
-        e = e.__cause__ or e.__context__
     return None
 
 
