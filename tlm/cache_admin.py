@@ -17,7 +17,8 @@ and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``), and ``references/<key>.partial.npz``, the rounds saved of a reference being computed or
 interrupted (:mod:`tlm.experiments.reference_resume`: an entry of its own, a **partial**, which ``tlm cache``
 names with the rounds its header says it holds, :func:`partial_state`, and a prune may remove as any other, but
-while a live process of this machine computing it saved it under :data:`BUSY_SECONDS` ago: a write in progress);
+while a live process of this machine computing it saved it under :data:`BUSY_SECONDS` ago: a write in progress,
+:func:`partial_computer`);
 ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be written) a
 kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
@@ -53,6 +54,7 @@ from pathlib import Path
 from tlm.caches import cache_home, remove_entry
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.storage import folder_lock, pid_alive, process_tag
+from tlm.storage_live import process_start
 
 NAMES = ("functional", "scenes", "references", "oracle", "tracebacks", "numba")
 BUSY_SECONDS = 3600  # a temporary file (or an entry without its sidecar) younger than this is a write in progress
@@ -276,17 +278,36 @@ def partial_state(path: Path, written: float, now: float) -> tuple[int | None, s
     by their header (:func:`partial_info`): ``(rounds, words, computing)``: the rounds it holds (its cycles times
     their rounds; None where it cannot be read: a damaged file, or another tlm's layout), what ``tlm cache`` says of
     it after ``partial:`` (``24 rounds saved by an interrupted compute``), and whether a live process of this
-    machine other than this one saved it under :data:`BUSY_SECONDS` ago (``now``): a compute at work, whose file is
-    a write in progress (the compute saves it again at its next save)."""
+    machine other than this one, computing it (:func:`partial_computer`), saved it under :data:`BUSY_SECONDS` ago
+    (``now``): a compute at work, whose file is a write in progress (the compute saves it again at its next save)."""
     info = partial_info(path) or {}
-    rounds, writer = partial_rounds(info), info.get("writer")
+    rounds = partial_rounds(info)
     if not rounds:
         return None, ("its rounds cannot be read (a damaged file, or another tlm's: the next compute of its key says "
                       "which)"), False
-    if (isinstance(writer, str) and writer != process_tag() and now - written < BUSY_SECONDS
-            and _live_writer(writer)):
-        return rounds, f"{rounds} rounds saved so far by process {writer.rpartition('-')[2]}, computing it now", True
+    pid = partial_computer(info) if now - written < BUSY_SECONDS else None
+    if pid is not None:
+        return rounds, f"{rounds} rounds saved so far by process {pid}, computing it now", True
     return rounds, f"{rounds} rounds saved by an interrupted compute", False
+
+
+def partial_computer(info: dict) -> str | None:
+    """The id of the process computing now the rounds saved of header ``info`` (:func:`partial_info`): its
+    ``writer`` (``h<host>-<pid>``), a live process of this machine other than this one, that has not left them
+    (no ``stopped``: the last save of a compute that leaves its rounds, an interrupt or an error, says it, as the
+    process may live on: a notebook, a service) and that its ``started`` (:func:`~tlm.storage_live.process_start`,
+    where ``/proc`` tells) says is the one that saved them, not a later one given its id. None for none (a
+    reference interrupted earlier). A header of an older tlm's (neither field) is read by its writer alone."""
+    writer = info.get("writer")
+    if not isinstance(writer, str) or writer == process_tag() or info.get("stopped") is True:
+        return None
+    host, _, pid = writer.rpartition("-")
+    if host != process_tag().rpartition("-")[0] or not pid.isdigit() or not pid_alive(int(pid)):
+        return None
+    started = info.get("started")
+    if type(started) is int and process_start(int(pid)) not in (None, started):
+        return None  # (another process, given the id of the one that saved them)
+    return pid
 
 
 def _seen(files: list[Path]) -> dict[Path, dict[str, tuple[int, ...]]]:

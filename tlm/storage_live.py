@@ -3,7 +3,8 @@
 :func:`tlm.storage.clean_stale`).
 
 * :func:`pid_alive` — whether a process of this machine runs; :func:`process_tag` — this process as the
-  names of its writers' temporary files and folders carry it (``h<host>-<pid>``).
+  names of its writers' temporary files and folders carry it (``h<host>-<pid>``); :func:`process_start` — when
+  a process started (``/proc``'s clock ticks since boot): a process id reused names another process.
 * :func:`_writer`, :func:`_thread_tag`, :func:`_hold`, :func:`_release` — one writer of a folder, a
   thread's temporary file, the temporary folders this process's writers are using now (:data:`_LIVE`,
   :data:`_FILES`, under :data:`_LIVE_LOCK`, which a forked child makes anew: read it as
@@ -42,6 +43,17 @@ def pid_alive(pid: int) -> bool:
     except OSError:
         return True  # no /proc: it exists
     return not line[line.rindex(")") + 2:].startswith(("Z", "X"))
+
+
+def process_start(pid: int) -> int | None:
+    """When process ``pid`` started, in clock ticks since the machine booted (``/proc/<pid>/stat``'s field 22,
+    ``starttime``): a process that ended and another given its id have two; None where there is no ``/proc``
+    (or the process is gone, or its line cannot be read)."""
+    try:
+        line = Path(f"/proc/{pid}/stat").read_text()
+        return int(line[line.rindex(")") + 2:].split()[19])  # (fields 3 on, after the name in parentheses)
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def process_tag() -> str:

@@ -31,20 +31,22 @@ from tlm.scenes.model import Scene
 
 
 def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = None,
-               timer: Timer | None = None, bar=None, scene: Scene | None = None, check_photons: bool = False) -> Frame:
+               timer: Timer | None = None, bar=None, scene: Scene | None = None,
+               check_photons: bool | str = False) -> Frame:
     """``cfg``'s scene (relative paths from ``base``; ``source`` names the config in an
     InputError), its BSP (``bsp.levels``, ``bsp.memory_factor``) and the frame the passes
     render. ``timer``: gets the stages ``load_scene`` and ``build_bsp``; ``bar``: a
     progress bar whose description names the BSP build while it runs; ``scene``: the
     scene when the caller loaded it already (to look up a cache before building). A pmap run that nothing gives
-    photons is an InputError once the scene is loaded, before its BSP, with ``check_photons`` (a run's, a reference's
-    of no photons: :func:`check_photons_given`; not an error-vs-cost study's base, whose points give the count)."""
+    photons is an InputError once the scene is loaded, before its BSP, with ``check_photons`` (True or ``"run"``: a
+    run's; ``"reference"``: a reference's of no photons, its own line; :func:`check_photons_given`; not an
+    error-vs-cost study's base, whose points give the count)."""
     timer = Timer() if timer is None else timer
     if scene is None:
         with timer.stage("load_scene"):
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
     if check_photons:  # (a pmap run that nothing gives photons: before the BSP; h474)
-        check_photons_given(scene, cfg, source)
+        check_photons_given(scene, cfg, source, "reference" if check_photons == "reference" else "run")
     if bar is not None:
         bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)
@@ -114,19 +116,32 @@ def cast_image(frame: Frame) -> GBuffer:
     return cast(frame, np.arange(cam.width * cam.height, dtype=np.int64))
 
 
-def check_photons_given(scene: Scene, cfg: RunConfig, source: str | None = None) -> None:
+def check_photons_given(scene: Scene, cfg: RunConfig, source: str | None = None, of: str = "run") -> None:
     """An InputError (exit status 2) naming ``scene``'s file and its key ``photons`` when ``cfg``'s mode asks for
     the photon-map pass and nothing gives it photons: the config's ``photons.count`` null and the scene file without
     ``photons:`` (or 0), where the pass would otherwise run (lights with power, a Lambertian surface). Said before
     the BSP is built or a ray cast, not as a warning after a run that renders no pmap frame and exits 0 (h474). A
-    config's own ``photons.count: 0`` leaves the pass out on purpose, as before (the run warns of it)."""
+    config's own ``photons.count: 0`` leaves the pass out on purpose, as before (the run warns of it). ``of``:
+    ``"reference"``, for a reference whose ``reference.photons`` is null (its caller's to tell): it traces the scene
+    file's count whatever the mode and ``photons.count``, and its line says what it lacks and what gives it."""
+    from dataclasses import replace
+
     from tlm.experiments.run_warnings import BUILTIN_COUNTS
     from tlm.render.planner import plan
 
-    if cfg.mode != "pmap" or cfg.photons.count is not None or scene.photons:
+    reference = of == "reference"
+    if scene.photons or (not reference and (cfg.mode != "pmap" or cfg.photons.count is not None)):
         return
-    if not any(p.name == "pmap" and not p.run and p.by == "photons.count" for p in plan(scene, cfg).passes):
+    probe = replace(cfg, mode="pmap", photons=replace(cfg.photons, count=None)) if reference else cfg
+    if not any(p.name == "pmap" and not p.run and p.by == "photons.count" for p in plan(scene, probe).passes):
         return
+    if reference:  # (the k-nearest photons' estimate at the surfaces the eye sees is all it computes)
+        raise InputError(
+            "a photon-map reference is the estimate of each round's photons alone, but the scene file gives no "
+            "photons (no photons:, or 0) and the config's reference.photons is null, so no photon would be traced "
+            "and the reference would have nothing to estimate (every pixel 0): add `photons: N` "
+            "to the scene file, or `reference: {photons: N}` to the config (--set reference.photons=N)"
+            + f" {BUILTIN_COUNTS}", source=scene.source or source, key="photons")
     raise InputError(
         "mode 'pmap' asks for the photon-map pass, but the scene file gives no photons (no photons:, or 0) and the "
         "config's photons.count is null, so no photon would be traced and the run would have no pmap frame: add "

@@ -43,7 +43,11 @@ saves none).
 Two processes computing one key at once save the same rounds (the same seeds) into one file, each
 through a temporary file of its own: neither reads a half-written one, and the one behind does not
 replace the rounds of the one ahead (:meth:`Partial.save`); one that starts while another computes the
-key resumes from its rounds (the same result), and its line says so (the file names its writer).
+key resumes from its rounds (the same result), and its line says so (the file names its writer, ``h<host>-<pid>``,
+and when it started, ``started``, :func:`~tlm.storage_live.process_start`: an id given since to another process
+names no compute). A compute that leaves its rounds (an interrupt, an error) says so in the file as it leaves
+(``stopped``, :meth:`Partial.leave`): its process may live on (a notebook, a service), computing them no longer
+(:func:`~tlm.cache_admin.partial_computer`: ``tlm cache`` and a resume read both).
 
 A cache that cannot be written keeps no rounds (its one line, :mod:`tlm.caches`, says it cannot be
 written): none are kept in the temporary folder, where the reference itself may go
@@ -61,10 +65,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tlm.cache_admin import partial_computer
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.reference_cache import PARTIAL_VERSION, partial_info, partial_path, partial_rounds
 from tlm.kernels.engine import engine
-from tlm.storage import pid_alive, process_tag, warn, write_atomic
+from tlm.storage import process_tag, warn, write_atomic
+from tlm.storage_live import process_start
 
 SAVE_SECONDS = 60.0  # a save of more than SMALL_SAVE bytes waits this long after the last one (or the start)
 SMALL_SAVE = 4 << 20  # bytes (320 x 240 pixels: 3.7 MB, a few ms): saved after every cycle
@@ -103,13 +109,11 @@ def stops_at(errors: list[float], k: int, min_cycles: int, max_cycles: int, tole
     return max_cycles if max_cycles <= k else None
 
 
-def _whose(writer: object) -> str:
-    """Whose rounds they are: a reference interrupted earlier, or (``writer``, ``h<host>-<pid>``, a live
-    process of this machine's) one another process is computing now (the same rounds: resumed all the same)."""
-    host, _, pid = str(writer).rpartition("-")
-    if writer != process_tag() and host == process_tag().rpartition("-")[0] and pid.isdigit() and pid_alive(int(pid)):
-        return f"a reference that process {pid} is computing now"
-    return "a reference interrupted earlier"
+def _whose(info: dict) -> str:
+    """Whose rounds those of header ``info`` are: a reference interrupted earlier, or one another process of this
+    machine is computing now (:func:`~tlm.cache_admin.partial_computer`; the same rounds: resumed all the same)."""
+    pid = partial_computer(info)
+    return "a reference interrupted earlier" if pid is None else f"a reference that process {pid} is computing now"
 
 
 class Partial:
@@ -165,10 +169,10 @@ class Partial:
         done = rounds.k * info["strata"]
         why = self._why_not(info, rounds, min_cycles, max_cycles, tolerance)
         if why is not None:
-            self._tell(f"reference {self.key}: not resuming from round {done} of {_whose(info.get('writer'))} "
+            self._tell(f"reference {self.key}: not resuming from round {done} of {_whose(info)} "
                        f"({why}): it is computed from round 1{self._aside(info, done, max_cycles)}", warning=True)
             return None
-        self._tell(f"reference {self.key}: resuming from round {done} of {_whose(info.get('writer'))} "
+        self._tell(f"reference {self.key}: resuming from round {done} of {_whose(info)} "
                    f"({rounds.k} cycles of {self.strata} rounds done in {rounds.seconds:.1f} s, saved in {self.path})")
         self.saved = done  # (its rounds in the file now: kept() says them, or that they were replaced)
         return rounds
@@ -291,7 +295,9 @@ class Partial:
         if self._holds_more(info, rounds.k):  # (another kind's rounds, more than these: kept, the resume's line)
             self.held_off = True
             return
-        head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": process_tag()})
+        writer = process_tag()  # (and when the process it names started: None without /proc)
+        head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": writer,
+                           "started": process_start(int(writer.rpartition("-")[2]))})
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             free = shutil.disk_usage(self.path.parent).free
@@ -318,6 +324,28 @@ class Partial:
             self.last = _now()
             self.saved = rounds.k * self.strata
 
+    def leave(self) -> None:
+        """As the compute leaves its rounds (an interrupt, an error: :func:`marked`): its last save, where the file
+        holds it still, saved again saying so (``stopped``, all else as it was; a read and a write of the file, half
+        a second at 1080p), as its process may live on (a notebook, a service) and its id alive no longer means it
+        computes them (:func:`~tlm.cache_admin.partial_computer`: ``tlm cache`` lists an interrupted compute's
+        rounds, which a prune may remove, and a resume says a reference interrupted earlier). Not rounds another
+        process saved over it, nor those this compute resumed from and did not save again (their writer's); a file
+        that cannot be read or written is left as it is."""
+        if not self.saved or self.off:
+            return
+        info = partial_info(self.path)
+        if (info is None or info.get("writer") != process_tag() or info.get("stopped") is True
+                or any(info.get(f) != v for f, v in self.kind.items()) or partial_rounds(info) != self.saved):
+            return
+        with contextlib.suppress(Exception):  # (damaged or replaced since, a cache that cannot be written: as it is)
+            with np.load(self.path, allow_pickle=False) as z:
+                arrays = {n: z[n] for n in z.files}
+            if json.loads(str(arrays["info"][()])) == info:  # (not replaced since its header was read)
+                arrays["info"] = np.array(json.dumps({**info, "stopped": True}))
+                with write_atomic(self.path, "wb") as fh:
+                    np.savez(fh, **arrays)
+
 
 MARK = "reference_partial"  # an interrupt's attribute: the Partial of the compute it stopped (tlm.cli_report reads it)
 
@@ -326,11 +354,14 @@ MARK = "reference_partial"  # an interrupt's attribute: the Partial of the compu
 def marked(saved: Partial | None):
     """Around a reference compute's rounds: an interrupt (or any error) that leaves them carries the compute's
     saved rounds, ``saved``, as its attribute :data:`MARK`, the innermost compute's (a command's line then says
-    how many the cache keeps: :func:`tlm.cli_report.reference_cut_short`, through the API's layers)."""
+    how many the cache keeps: :func:`tlm.cli_report.reference_cut_short`, through the API's layers), and the file
+    says that no process computes them any longer (:meth:`Partial.leave`)."""
     try:
         yield
     except BaseException as e:
         if saved is not None and getattr(e, MARK, None) is None:
             with contextlib.suppress(Exception):  # (an exception that takes no attribute: said as before)
                 setattr(e, MARK, saved)
+        if saved is not None:
+            saved.leave()
         raise
