@@ -46,9 +46,9 @@ def test_a_run_past_the_ratio_warns_and_one_at_it_does_not(tmp_path, cache):
     # (per map since h465: the global map, final gathering's, gets the run's 1000 not aimed at the glass, and the
     # reference's half of its 400; its caustic map, as many, ties)
     assert _blur(past["warnings"]) == [
-        f"the photon-map frame's global map gets 1000 photons a round of the 2000 it emits, its reference "
-        f"{error['reference']}'s 200 (half of reference.photons 400): each k-NN round of the reference (20 photons: "
-        "reference.k_nearest) gathers in a map 5.00x sparser than this run's, so the pmap error against it "
+        f"the photon-map frame's global map gets 1000 of the 2000 photons it emits, and that map of its reference "
+        f"{error['reference']} gets 200 a round (half of reference.photons 400): each k-NN round of the reference (20 "
+        "photons: reference.k_nearest) gathers in a map 5.00x sparser than this run's, so the pmap error against it "
         "(error.rmse, error.rel_mse) may measure the reference's blur more than this run's noise; raise "
         "reference.photons to 500 or more (at most 4x this run's on that map) and compute it again with "
         "'tlm reference'"]
@@ -67,9 +67,9 @@ def test_a_null_reference_count_is_the_scenes_and_caustic_photons_count(cache):
     error = {"available": True, "reference": "k"}
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap"}, "t")
     line = blur_warnings(error, cfg, 482000, 120000)
-    assert len(line) == 1 and "global map gets 241000 photons a round of the 482000 it emits, its reference k's " \
-        "60000 (half of the scene's 120000: reference.photons null)" in line[0] and "4.02x sparser" in line[0] \
-        and "raise reference.photons to 120500 or more" in line[0]
+    assert len(line) == 1 and "global map gets 241000 of the 482000 photons it emits, and that map of its reference " \
+        "k gets 60000 a round (half of the scene's 120000: reference.photons null)" in line[0] \
+        and "4.02x sparser" in line[0] and "raise reference.photons to 120500 or more" in line[0]
     assert blur_warnings(error, cfg, 480000, 120000) == []  # (4x: not past the ratio)
     assert blur_warnings({"available": False, "reference": "k"}, cfg, 482000, 120000) == []  # (no error measured)
     assert blur_warnings(error, cfg, None, 120000) == []  # (no photon-map pass)

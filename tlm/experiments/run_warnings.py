@@ -3,8 +3,7 @@ but a wrong or a misleading result.
 
 :func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
 a setting the run never reads, an override of a key whose pass is left out:
-:func:`unread_overrides`, a reference not converged or much blurrier than the run, or a k-NN run much blurrier
-than its reference: :func:`reference_warnings`,
+:func:`unread_overrides`, a reference not converged or much blurrier than the run: :func:`reference_warnings`,
 a BSP cut short); :func:`stream_warnings`: the simulated stream's (too few frames, a period whose gaps differ:
 :func:`period_warnings`, packets too coarse from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set
 that the timing model never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
@@ -515,8 +514,7 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
     against a reference that is not converged (``reference_converged`` false: it does not meet
     ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it; and, given the
     run's ``emitted`` photons and the scene's (``scene_photons``, what a null ``reference.photons``
-    takes), the lines of :func:`blur_warnings` on a reference much blurrier than the run (or a k-NN run much
-    blurrier than it)."""
+    takes), the line of :func:`blur_warnings` on a reference much blurrier than the run."""
     from tlm.experiments.reference_cache import rounds_advice  # (h473: the rounds that may reach the tolerance)
 
     blur = blur_warnings(error, cfg, emitted, scene_photons)
@@ -534,8 +532,9 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
 # a photon map's kernel past this many times the area of the other's (h453, per map since h465): the reference's
 # k-NN rounds gather so much wider than the run that its error against the reference may measure the reference's
 # blur more than its noise (configs/cornell-water.yaml: its caustic map 6.25x; configs/ring.yaml with --mode pmap:
-# its indirect map 20x; the other committed configs 1x or less; a reference's cost grows with its photons); or, of
-# a k-NN run (estimate.k_nearest past reference.k_nearest), the run's so much wider that the error is its own blur
+# its global map 20x, final gathering's; the other committed configs 1x or less; a reference's cost grows with its
+# photons). Not the other way round (h478): a run blurrier than its reference, a k-NN estimate.k_nearest past
+# reference.k_nearest as much as a run of fewer photons, has its blur measured by the error, as it should be
 BLUR_RATIO = 4
 
 
@@ -559,20 +558,25 @@ def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int
     (:func:`tlm.experiments.reference.reference_config`: the default caustic_fraction 0.5) half each; without
     a mirror or glass, every photon the indirect map (and no caustic map is compared, nor one the run's caustic
     group left empty: a caustic_fraction or caustic_count 0, whose caustic photons, not aimed, are not as dense
-    as its count says). The kernel photons are compared where both kernels take the k nearest at each
-    point alike: ``estimate.k_nearest`` (``filter: knn``), ``radius_photons`` (the density rule of the indirect
-    map, without final gathering: indirect light is smooth, so the one radius the rule fits to the map's median
-    photon holds about that many everywhere). Elsewhere the photons alone (the kernel photons taken as the
-    reference's, as h453 did): the caustic map's density rule (its one radius, fitted to the median caustic
-    photon, most of which spread thin, holds many times ``caustic_radius_photons`` in a caustic's bright core,
-    where the reference's k nearest shrink), and final gathering's global map (the indirect light at the eye's
-    point is the mean of ``final_gather`` lookups a bounce away, not one kernel). None of a map whose radius the
-    config fixes (h457: more photons make it no narrower)."""
+    as its count says, nor one that stored nothing). A mirror or glass is told by the caustic photons the run
+    stored, or, with a ``caustic_count``, by its emitting more than ``count`` (only a scene with one emits that
+    budget: h478, its caustic map empty where the specular objects are out of the light's reach). The
+    reference's rounds take the k nearest of both its maps at once: each map's half is its density where that
+    map's photons are most of them (a caustic's core; away from the caustics). The kernel photons are compared
+    where both kernels take the k nearest at each point alike: ``estimate.k_nearest`` (``filter: knn``),
+    ``radius_photons`` (the density rule of the indirect map, without final gathering: indirect light is smooth,
+    so the one radius the rule fits to the map's median photon holds about that many everywhere). Elsewhere the
+    photons alone (the kernel photons taken as the reference's, as h453 did): the caustic map's density rule (its
+    one radius, fitted to the median caustic photon, most of which spread thin, holds many times
+    ``caustic_radius_photons`` in a caustic's bright core, where the reference's k nearest shrink), and final
+    gathering's global map (the indirect light at the eye's point is the mean of ``final_gather`` lookups a bounce
+    away, not one kernel). None of a map whose radius the config fixes (h457: more photons make it no narrower)."""
     emitted, stored = (photons.get("emitted"), photons.get("caustic")) if isinstance(photons, dict) else (photons, None)
     p, est, k_ref = cfg.photons, cfg.estimate, cfg.reference.k_nearest
     n = p.count if p.count is not None else scene_photons  # (the global group's, beside a caustic_count)
-    # (a mirror or glass: caustic photons stored; unknown, a caustic budget of its own tells by what was emitted)
-    specular = stored > 0 if isinstance(stored, int) else emitted > n if p.caustic_count and n else True
+    # (a mirror or glass: a caustic budget of its own emitted beside count, else caustic photons stored; unknown: one)
+    budget = bool(p.caustic_count) and isinstance(n, int) and n > 0
+    specular = emitted > n if budget else stored > 0 if isinstance(stored, int) else True
     aimed = specular and (p.caustic_count > 0 if p.caustic_count is not None else p.caustic_fraction > 0)
     caustic = (p.caustic_count if p.caustic_count is not None else round(emitted * p.caustic_fraction)) if aimed else 0
     run = {"caustic": caustic, "indirect": emitted - caustic}
@@ -581,7 +585,7 @@ def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int
     fixed = {"caustic": est.caustic_radius is not None or est.caustic_radius_fraction is not None,
              "indirect": est.radius is not None or est.radius_fraction is not None}
     out = []
-    for name in ("indirect", "caustic") if aimed else ("indirect",):
+    for name in ("indirect", "caustic") if aimed and stored != 0 else ("indirect",):
         if (not knn and fixed[name]) or run[name] <= 0:
             continue
         if knn and not (fg and name == "indirect"):
@@ -596,16 +600,15 @@ def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int
 
 def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | dict | None,
                   scene_photons: int | None) -> list[str]:
-    """Lines when the photon-map frame's error was measured (``error`` ``available``) against a reference whose
-    kernel is much wider or narrower than the run's on a photon map the run gathers (:func:`_per_map`: each map's
-    photons a round, the run's by ``emitted``, :func:`emitted_photons` or its count alone, the reference's of
+    """A line when the photon-map frame's error was measured (``error`` ``available``) against a reference whose
+    kernel is much wider than the run's on a photon map the run gathers (:func:`_per_map`: each map's photons a
+    round, the run's by ``emitted``, :func:`emitted_photons` or its count alone, the reference's of
     ``reference.photons``, null: the scene's ``scene_photons``; and the photons each kernel holds, the reference's
     ``reference.k_nearest``). A k-NN kernel's area goes as its photons over the map's: where the reference's is
     past :data:`BLUR_RATIO` times the run's, each of its rounds converges to an image blurrier than the run's and
     the error (``error.rmse``, ``error.rel_mse``) may measure that blur more than the run's noise (h453); the line
-    names the worst map, both counts and the ``reference.photons`` to give. Where a k-NN run's
-    (``estimate.k_nearest`` past ``reference.k_nearest``) is past that many times the reference's, the run is the
-    blurrier by design, and its error mostly its own blur (h465); the line names the ``k_nearest`` to give."""
+    names the worst map, both counts and the ``reference.photons`` to give. None the other way round (h478: a
+    run blurrier than its reference has its own blur measured, as the error should)."""
     if not (error and error.get("available")) or emitted is None:
         return []
     given = cfg.reference.photons
@@ -615,37 +618,20 @@ def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | dict | None
         return []
     maps = [(cfg.reference.k_nearest * run / (ref * k), name, run, ref, k, how)
             for name, run, ref, k, how in _per_map(cfg, emitted, n_ref, scene_photons)]
-    whose = f"reference.photons {n_ref}" if given is not None else f"the scene's {n_ref}: reference.photons null"
-    lines = []
     wide = max(maps, default=None, key=lambda m: m[0])
-    if wide is not None and wide[0] > BLUR_RATIO:
-        ratio, name, run, ref, k, how = wide
-        lines.append(
-            f"the photon-map frame's {name} map gets {run} photons a round of the {total} it emits, its reference "
-            f"{error['reference']}'s {_share(ref, n_ref, whose)}: each k-NN round of the reference "
+    if wide is None or wide[0] <= BLUR_RATIO:
+        return []
+    ratio, name, run, ref, k, how = wide
+    whose = f"reference.photons {n_ref}" if given is not None else f"the scene's {n_ref}: reference.photons null"
+    share = f"{n_ref} a round ({whose})" if ref == n_ref else f"{math.floor(ref)} a round (half of {whose})"
+    return [f"the photon-map frame's {name} map gets {run} of the {total} photons it emits, and that map of its "
+            f"reference {error['reference']} gets {share}: each k-NN round of the reference "
             f"({cfg.reference.k_nearest} photons: reference.k_nearest) "
             + (f"gathers over {float(ratio):.2f}x the area of this run's gathers of {k} ({how})" if how else
                f"gathers in a map {float(ratio):.2f}x sparser than this run's")
             + ", so the pmap error against it (error.rmse, error.rel_mse) may measure the reference's blur more "
             f"than this run's noise; raise reference.photons to {math.ceil(n_ref * ratio / BLUR_RATIO)} or more (at "
-            f"most {BLUR_RATIO}x this run's on that map) and compute it again with 'tlm reference'")
-    narrow = min((m for m in maps if m[5] == "estimate.k_nearest"), default=None, key=lambda m: m[0])
-    if narrow is not None and narrow[4] > cfg.reference.k_nearest and narrow[0] * BLUR_RATIO < 1:
-        ratio, name, run, ref, k, how = narrow
-        lines.append(
-            f"the photon-map frame's k-NN estimate gathers {k} photons at a time (estimate.k_nearest) of the {run} "
-            f"its {name} map gets a round, over {float(1 / ratio):.2f}x the area of its reference "
-            f"{error['reference']}'s rounds ({cfg.reference.k_nearest} photons: reference.k_nearest, of "
-            f"{_share(ref, n_ref, whose)}): this run is the blurrier by design, so the pmap error against it "
-            "(error.rmse, error.rel_mse) measures mostly its own blur, not its noise; an estimate.k_nearest of "
-            f"{max(1, math.floor(k * ratio * BLUR_RATIO))} or fewer gathers within {BLUR_RATIO}x the reference's "
-            "area (or more photons do)")
-    return lines
-
-
-def _share(ref: Fraction, n_ref: int, whose: str) -> str:
-    """The reference's photons a round that a map gets, in words: all of them, or half (its caustic group's)."""
-    return f"{n_ref} ({whose})" if ref == n_ref else f"{math.floor(ref)} (half of {whose})"
+            f"most {BLUR_RATIO}x this run's on that map) and compute it again with 'tlm reference'"]
 
 
 def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = None) -> list[str]:
