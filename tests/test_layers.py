@@ -35,7 +35,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.arch",),
     ("tlm.experiments",
      "tlm.experiments.reference_resume"),  # (h454: an interrupted reference resumed, out of reference)
-    ("tlm.report",),
+    ("tlm.report",
+     "tlm.report.written"),  # (h477: which files of a run folder its run wrote, the report's only reads)
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
      "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)

@@ -18,7 +18,8 @@ extreme            ``tlm extreme``                             ``extreme.jsonl``
 =================  ==========================================  ================================
 
 Every run folder found (a run, a thesis cell ``<scene>/<mode>``, a sweep point) becomes
-a :class:`Run`; the study tables are kept as rows.
+a :class:`Run`; the study tables are kept as rows. A run's files, and a thesis study's cells, are read where
+its ``.tlm-written`` lists them alone, where it has one (:mod:`tlm.report.written`: not a rerun's kept ones).
 
 A file the sections read is checked here for what they need of it (its columns or keys,
 numbers where they compute): a damaged one, empty, cut off (a study's tables are written
@@ -46,6 +47,7 @@ from tlm.config import MODES
 from tlm.errors import InputError, shell_word
 from tlm.experiments.sweep_rows import one_row_each
 from tlm.experiments.thesis import METRICS, PM_METRICS
+from tlm.report import written
 from tlm.report.checks import (  # noqa: F401  (the kinds of value and results.json's keys: importable from here too)
     BOOL,
     COUNT,
@@ -100,6 +102,7 @@ class Run:
     # a sweep point's --set overrides: its sweep's (sweep.yaml ``overrides``; its results.json has none); None for
     # another run, whose own results.json lists them (:attr:`overrides`)
     sweep_overrides: list[str] | None = None
+    listing: Any = field(default=None, init=False, repr=False, compare=False)  # (its .tlm-written: written.names_of)
 
     @property
     def overrides(self) -> list[str]:
@@ -142,18 +145,20 @@ class Run:
 
     @property
     def trace(self) -> Path | None:
-        p = self.path / "trace.json"
-        return p if p.is_file() else None
+        return self.wrote("trace.json")
 
     @property
     def images(self) -> Path | None:
-        p = self.path / "images"
-        return p if p.is_dir() else None
+        return self.wrote("images", folder=True)
 
     @property
     def radiance(self) -> Path | None:
-        p = self.path / "radiance"
-        return p if p.is_dir() else None
+        return self.wrote("radiance", folder=True)
+
+    def wrote(self, rel: str, folder: bool = False) -> Path | None:
+        """``path / rel`` where the run wrote it (its ``.tlm-written`` lists it), else None: :func:`written.wrote`,
+        the report's one test of a run's files (one a rerun kept from an earlier output is not the run's)."""
+        return written.wrote(self, rel, folder)
 
 
 @dataclass
@@ -595,11 +600,13 @@ def _folder(inputs: Inputs, folder: Path, kind: str, run_name: str, labelled: li
         study = Study("thesis", folder, rows, summary)
         _study_records(study, folder)
         cells, damaged = [], []
-        for cell in sorted(folder.glob("*/*/results.json")):
+        found, kept = written.study_cells(folder)  # (a cell the study's listing does not name: not its own)
+        for cell in found:
             try:
-                cells.append(_run(cell.parent, "", "thesis"))
+                cells.append(_run(cell, "", "thesis"))
             except InputError as e:
-                damaged.append(f"{_damage_line(e, AGAIN['cell'])}: {LEFT_OUT['cell'].format(folder=cell.parent)}")
+                damaged.append(f"{_damage_line(e, AGAIN['cell'])}: {LEFT_OUT['cell'].format(folder=cell)}")
+        inputs.notes.extend(kept)
         inputs.studies.append(study)
         inputs.damaged.extend(damaged)
         labelled.extend((run, lambda r: f"{r.scene_label}/{r.mode}") for run in cells)

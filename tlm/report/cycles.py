@@ -39,6 +39,7 @@ from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, count, new_figure, save, some
 from tlm.report.names import value_text
+from tlm.report.written import kept
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
@@ -571,7 +572,9 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
             why = ("arch.trace was false; a sweep's points trace only where it sets arch.trace: true"
                    if traced is False else
                    "the run wrote one, and it is gone from the folder" if traced else "none was written")
-            sec.notes.append(f"{run.label}: no trace.json ({why}), so no timeline.")
+            other = kept(run, "trace.json")  # (one there that a rerun kept from an earlier output: not read)
+            sec.notes.append(f"{run.label}: no trace.json {f'of its own{other}' if other else f'({why})'}, so no "
+                             "timeline.")
             continue
         try:
             fig = gantt_figure(run, out, FigureName((*slug, "timeline"), "\n".join((*slug, "timeline"))), sec.notes)

@@ -30,6 +30,10 @@ A mode whose pass the planner left out for lack of what it needs (no mirror, no
 dielectric, ...) still has an image (the same as the previous mode's) and its panel
 gives the planner's reason; a mode beyond the run's is an empty panel saying it was
 not run and why. Sweep points keep no images; they are listed in a note.
+
+Each file is read where the run wrote it alone (:meth:`~tlm.report.collect.Run.wrote`: its ``.tlm-written``
+lists it), never one a rerun into the folder kept from an earlier output (:mod:`tlm.report.written`); a panel
+or note that finds such a file says so.
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from tlm.render.planner import PASSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, new_figure, save
 from tlm.report.tables import thesis_table
+from tlm.report.written import kept
 
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
 SCENE_TITLE = {"ring": "Scene with ring (Fig. 15)", "room": "Room scene (Fig. 16)",
@@ -107,9 +112,10 @@ def _resolution(run: Run) -> str:
 def cell_panel(run: Run, mode: str) -> Panel:
     """The panel of one thesis cell: its composite, and the reason if its pass was left out."""
     _, left = _plan(run)
-    png = run.path / "images" / "composite.png"
-    if not png.is_file():
-        return Panel(mode, remark=f"no image: {run.label} has no images/composite.png")
+    png = run.wrote("images/composite.png")  # (a file the cell wrote: its listing's)
+    if png is None:
+        return Panel(mode, remark=f"no image: {run.label} has no images/composite.png"
+                     f"{kept(run, 'images/composite.png')}")
     remark = f"{mode} pass left out: {left[mode]} (image = previous mode's)" if mode in left else ""
     return Panel(mode, _read_png(png), remark)
 
@@ -147,17 +153,20 @@ def run_panels(run: Run) -> list[Panel]:
             panels.append(Panel(mode, remark=f"not run: {left.get(mode, f'the run is in mode {run.mode!r}')}"))
             continue
         if rad_dir is None:
-            if i == top and (run.path / "images" / "composite.png").is_file():
-                panels.append(Panel(mode, _read_png(run.path / "images" / "composite.png")))
+            composite = run.wrote("images/composite.png") if i == top else None
+            if composite is not None:
+                panels.append(Panel(mode, _read_png(composite)))
             else:
-                panels.append(Panel(mode, remark="cannot rebuild: the run folder has no radiance/"))
+                panels.append(Panel(mode, remark="cannot rebuild: the run folder has no radiance/"
+                                    + kept(run, "radiance")))
             continue
         name = PASSES[i]
         remark = ""
         if name in ran:
-            path = rad_dir / f"{name}.npy"
-            if not path.is_file():
-                panels.append(Panel(mode, remark=f"no radiance/{name}.npy in the run folder"))
+            path = run.wrote(f"radiance/{name}.npy")  # (one the run wrote: not an earlier run's, kept by a rerun)
+            if path is None:
+                panels.append(Panel(mode, remark=f"no radiance/{name}.npy in the run folder"
+                                    + kept(run, f"radiance/{name}.npy")))
                 total = None
                 continue
             rad = np.load(path).astype(np.float64)
@@ -246,9 +255,8 @@ def error_figure(run: Run, out: Path):
     if not error.get("available"):
         return None
     diff_name = str(error.get("difference_image") or "images/pmap_error.png")
-    diff_png = run.path / diff_name
-    frame_png = run.path / "images" / "pmap.png"
-    if not diff_png.is_file() or not frame_png.is_file():
+    diff_png, frame_png = run.wrote(diff_name), run.wrote("images/pmap.png")  # (the run's own: its listing's)
+    if diff_png is None or frame_png is None:
         return None
     scale = float(error.get("difference_scale") or 1.0)
     written = _read_png(diff_png)
@@ -326,7 +334,8 @@ def images_section(inputs: Inputs, out: Path) -> Section:
     with_images = []
     for run in runs:
         if run.images is None and run.radiance is None:
-            section.notes.append(f"{run.label}: the run folder has no images/ or radiance/, left out")
+            section.notes.append(f"{run.label}: the run folder has no images/ or radiance/"
+                                 f"{kept(run, 'images')}{kept(run, 'radiance')}, left out")
         else:
             with_images.append(run)
     for k in range(0, len(with_images), MAX_ROWS):
@@ -371,9 +380,9 @@ def _unmeasured(run: Run, error: dict) -> str:
     if not isinstance(command, str) or not command:
         from tlm.experiments.run import reference_command  # (tlm run's rule; imported only here)
 
-        resolved = run.path / "config.resolved.yaml"
+        resolved = run.wrote("config.resolved.yaml")
         config = run.results.get("config")
-        if resolved.is_file() and not _run_config(run, config):
+        if resolved is not None and not _run_config(run, config):
             command = reference_command(str(resolved.absolute()))
         else:
             command = reference_command(config if isinstance(config, str) else None,
@@ -426,7 +435,9 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
             continue
         fig = error_figure(run, out)
         if fig is None:
-            section.notes.append(f"{run.label}: no images/pmap.png or images/pmap_error.png: no error figure")
+            diff = str(error.get("difference_image") or "images/pmap_error.png")
+            section.notes.append(f"{run.label}: no images/pmap.png or {diff}{kept(run, 'images/pmap.png')}"
+                                 f"{kept(run, diff)}: no error figure")
         else:
             section.figures.append(fig)
     if said:
