@@ -29,7 +29,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths", "tlm.config_read",
      "tlm.config_sections"),
     ("tlm.scenes",),
-    ("tlm.kernels",),
+    ("tlm.kernels",
+     "tlm.kernels.threads_forked"),  # (h480: the forked process pool, out of tlm.kernels.threads)
     ("tlm.render",),
     ("tlm.oracle",),
     ("tlm.arch",),

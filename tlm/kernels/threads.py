@@ -25,13 +25,18 @@ import contextvars
 import itertools
 import logging
 import os
-import signal
 import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import TypeVar
+
+from tlm.kernels import threads_forked
+from tlm.kernels.threads_forked import _forked_init as _forked_init  # (the forked pool: kept importable from here)
+from tlm.kernels.threads_forked import _HeldSignals as _HeldSignals
+from tlm.kernels.threads_forked import die_with_parent as die_with_parent
+from tlm.kernels.threads_forked import forked as forked
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -198,12 +203,12 @@ def using(n: int | None):
 
 def _forget_pools() -> None:
     """In a forked child: the parent's pools' threads are not there, so start afresh (the
-    locks too: the parent may have held them at the fork, :func:`forked` does)."""
-    global _POOLS_LOCK, _BUSY, _FORK_LOCK
+    lock too: the parent may have held it at the fork, :func:`forked` does; the fork lock is
+    :mod:`~tlm.kernels.threads_forked`'s own)."""
+    global _POOLS_LOCK, _BUSY
     _POOLS.clear()
     _POOLS_LOCK = threading.Lock()
     _BUSY = 0
-    _FORK_LOCK = threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):
@@ -213,6 +218,9 @@ if hasattr(os, "register_at_fork"):
 def _pool(n: int) -> ThreadPoolExecutor:
     with _POOLS_LOCK:
         pool = _POOLS.get(n)
+        if pool is not None and not all(t.is_alive() for t in list(getattr(pool, "_threads", ()))):
+            _drop(pool)  # (it lost a thread, and :func:`_lost` could not let it go)
+            pool = None
         if pool is None:
             pool = _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"{_POOL_THREADS}{n}")
             if _LOST_FILTER not in _FUTURES_LOG.filters:
@@ -220,14 +228,26 @@ def _pool(n: int) -> ThreadPoolExecutor:
         return pool
 
 
-_LOST: list[BaseException] = []  # what ended a worker of the pools (a MemoryError as its call's outcome was set)
-
-
 def _lost(record: logging.LogRecord) -> bool:
-    """concurrent.futures' "Exception in worker" of a pool's thread (its traceback, printed on
-    stderr): kept for :func:`result` to raise, not printed. Others' records pass."""
+    """concurrent.futures' records of a pool's thread with an error (its traceback, printed on
+    stderr): not printed. "Exception in worker" (the thread ends: its call's outcome could not be
+    set, a MemoryError under ``ulimit -v``): the error is kept on the thread that ends, for
+    :func:`result` to raise to a wait on that thread's call or on its pool (never another
+    pool's), and the pool is let go (:func:`_drop`; or by the next :func:`_pool` where the lock
+    is held: never waited for here, :func:`~tlm.kernels.threads_forked._quiet` holds it while it
+    joins the pools' threads, this one too): what nobody waits for goes with the pool and its
+    calls (its frames hold arrays), not kept for ever. Others' records pass."""
     if (record.threadName or "").startswith(_POOL_THREADS) and record.exc_info and record.exc_info[1] is not None:
-        _LOST.append(record.exc_info[1])
+        if record.msg == "Exception in worker":
+            me = threading.current_thread()  # (the filter runs in the thread that logs: the one that ends)
+            with contextlib.suppress(Exception):
+                me._tlm_lost = record.exc_info[1]
+                if _POOLS_LOCK.acquire(blocking=False):
+                    try:
+                        for pool in [p for p in _POOLS.values() if me in getattr(p, "_threads", ())]:
+                            _drop(pool)
+                    finally:
+                        _POOLS_LOCK.release()
         return False
     return True
 
@@ -236,11 +256,22 @@ _FUTURES_LOG = logging.getLogger("concurrent.futures")
 _LOST_FILTER = _lost
 
 
+def _drop(pool: ThreadPoolExecutor) -> None:
+    """A pool that lost a thread taken out of the pools (under ``_POOLS_LOCK``), and shut down
+    without a wait (the calls it holds still run on its threads left): a later call gets live
+    threads, not a queue none reads."""
+    for n in [n for n, p in _POOLS.items() if p is pool]:
+        del _POOLS[n]
+    with contextlib.suppress(Exception):
+        pool.shutdown(wait=False)
+
+
 def result(future: Future):
     """``future.result()`` of a call submitted to the pools, or, where the worker thread running it
     ended without setting its outcome (concurrent.futures ends a worker whose call's outcome could
     not be set: a MemoryError under ``ulimit -v``), the error that ended it, rather than a wait for
-    ever. The wait is checked every half second."""
+    ever; where no thread ran it and its pool's have all ended, what ended one of them. The wait
+    is checked every half second."""
     while True:
         try:
             return future.result(timeout=0.5)
@@ -251,13 +282,12 @@ def result(future: Future):
             workers = () if ran or pool is None else set(getattr(pool, "_threads", ()))  # (none left to run it)
             if ((ran and not ran[0].is_alive()) or (workers and not any(t.is_alive() for t in workers))) \
                     and not future.done():
-                with _POOLS_LOCK:  # (the pool let go: a later call gets live threads, not a queue none reads)
-                    for n in [n for n, p in _POOLS.items() if p is pool]:
-                        del _POOLS[n]
                 future.cancel()
-                with contextlib.suppress(Exception):
-                    pool.shutdown(wait=False)
-                raise (_LOST.pop() if _LOST else RuntimeError("the kernel threads ended without finishing a call")) \
+                with _POOLS_LOCK:
+                    _drop(pool)
+                lost = [e for t in (ran or sorted(workers, key=lambda t: t.name))
+                        if (e := getattr(t, "_tlm_lost", None)) is not None]
+                raise (lost[0] if lost else RuntimeError("the kernel threads ended without finishing a call")) \
                     from None
 
 
@@ -375,10 +405,6 @@ def background(fn: Callable[[], R]) -> Future:
     return _submit(_pool(n), one.run, fn)
 
 
-_FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
-_FORKED_SHARE = 1  # their :func:`share` (the calls in flight: twice the processes)
-_FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
-
 # Threads that may run beside a fork, by name: a sweep worker's watch on its parent
 # (tlm.experiments.executors_exit.watch_parent) waits in select() or sleep() and then calls
 # os._exit, holding no lock a forked worker could need.
@@ -425,271 +451,9 @@ def _other_threads(pools: bool = True) -> list[str]:
             if t is not me and t.name not in _QUIET_THREADS and (pools or not t.name.startswith(_POOL_THREADS))]
 
 
-def _compiler_lock():
-    """numba's global compiler lock (held while a thread compiles a kernel or loads one from
-    the cache), or a lock of none where numba is not imported (then no thread compiles)."""
-    module = sys.modules.get("numba.core.compiler_lock")
-    return contextlib.nullcontext() if module is None else module.global_compiler_lock
-
-
-@contextlib.contextmanager
-def _quiet():
-    """Yield True with this process quiet enough to fork, else False (the caller runs threads).
-
-    fork() copies only the calling thread: a lock another thread holds at that instant stays
-    held forever in the child, which then hangs when it needs it (2026-11-27, a ``tlm run``
-    and the test suite). So, in this order:
-
-    * no call in flight on this module's pools (``_BUSY``: an :func:`ordered` or
-      :func:`background` call may be loading a kernel, or a caller may still submit to the
-      pool) and no other Python thread alive but the pools' (:func:`_other_threads`: a
-      user's, a notebook's, a progress bar's, another library's pool): else False. What such
-      a thread holds cannot be known (nor whether it is about to submit to a pool); tlm's own
-      bars start no monitor thread (:func:`tlm.progress._bar_class`);
-    * then the idle pools are shut down and their threads joined, under ``_POOLS_LOCK`` so
-      that none is made again meanwhile (they are made again on first use), and no thread
-      but the caller is left (else False);
-    * numba's global compiler lock held by this thread across the fork: a thread that the
-      check cannot see (started by C code) may be compiling or loading a kernel; the fork
-      waits for it. The children own the lock then (the forking thread is their only one,
-      with the same id) and give it up first thing (:func:`_forked_init`), so they compile
-      and load kernels as any process does.
-
-    The libraries' native threads hold none of Python's locks: numpy's BLAS pool (OpenBLAS
-    stops its threads around a fork itself), numba's threading layer (OpenMP or workqueue
-    threads, started by a ``parallel=True`` kernel: the reference's, which no forked worker
-    calls). The interpreter takes its import lock across a fork itself, and a module's own
-    import lock is held only by a thread importing it: none runs."""
-    with _POOLS_LOCK:
-        if _BUSY or _other_threads(pools=False):
-            yield False
-            return
-        for pool in _POOLS.values():
-            pool.shutdown(wait=True)
-        _POOLS.clear()
-        if _other_threads():
-            yield False
-            return
-        with _compiler_lock():
-            yield True
-
-
-PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
-# the signals whose Python handlers raise (the command line's: tlm.cli_signals.TAKEN)
-_HELD_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
-
-
-def die_with_parent() -> None:
-    """On Linux, have the kernel kill this process (SIGKILL) when the thread that forked it ends
-    (``PR_SET_PDEATHSIG``): a parent killed, or ended by ``os._exit``, runs no shutdown that
-    would tell its workers to stop. Elsewhere nothing (the callers check their parent too)."""
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-
-
-def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
-    """A forked worker gives up numba's compiler lock that :func:`_quiet` held at the fork (its
-    thread is the forking one, so it owns it), leaves Ctrl-C to the render that forked it
-    (which ends the pool), and ends with the process ``parent`` that forked it.
-
-    SIGINT, SIGTERM and SIGHUP came blocked from the fork (:class:`_HeldSignals`), so that none
-    reached the handler the worker inherited (the command line's, which raises) before it
-    is replaced here; they are unblocked after (a child's pending signals are none at the
-    fork: nothing is lost). The end with ``parent``: a parent killed (SIGKILL, the out-of-memory
-    killer) or ended by ``os._exit`` (the command line's second Ctrl-C, a sweep worker's
-    watch on its own parent) runs no shutdown, and its workers would wait on their pipes for
-    ever. On Linux the kernel kills the worker then (``PR_SET_PDEATHSIG``, as a sweep's
-    workers do: :func:`tlm.experiments.executors_exit.exit_with`); a parent that died before
-    that call is seen by its pid. The kernel sends the signal when the *thread* that forked
-    ends, not the process: the forks happen in the thread that iterates :func:`forked`'s
-    generator, which consumes the workers' results, so the workers serve no one once it is
-    gone (a generator handed to another thread that way gets BrokenProcessPool, not a hang)."""
-    if holds_compiler_lock:
-        _compiler_lock().release()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    if hasattr(signal, "SIGHUP"):  # (a closed terminal's, sent to the whole group: the render ends the pool)
-        signal.signal(signal.SIGHUP, signal.SIG_IGN)
-    if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
-    die_with_parent()
-    if os.getppid() != parent:  # (the parent died before the prctl: this process is an orphan already)
-        os._exit(1)
-
-
-class _HeldSignals:
-    """SIGINT and SIGTERM held while :func:`forked` forks its workers, and given to their
-    handlers once the forks are done.
-
-    ``os.fork()`` runs Python's at-fork hooks (logging's, ...) in the parent, and CPython
-    ignores an exception raised in one ("Exception ignored in ..."): a SIGINT or SIGTERM whose
-    handler raises (``KeyboardInterrupt``: the command line turns SIGTERM into one) and runs
-    inside a hook would be lost, and the interrupted run would finish and exit 0. So, in the
-    main thread (where Python runs the handlers; elsewhere this does nothing):
-
-    * each signal's Python handler is replaced by this object, which only notes the signal
-      while the forks run: the kernel may deliver a signal to any thread that does not block
-      it (OpenBLAS's, numba's native threads, which no mask of this thread covers), and its
-      Python handler then runs in the main thread, inside a hook;
-    * the signals are blocked in this thread, so that a forked child (which inherits the
-      mask, with the handler it cannot yet have replaced) gets none before :func:`_forked_init`
-      unblocks them, and no fork is interrupted;
-    * :meth:`release` unblocks them (what came meanwhile is noted), puts the handlers back and
-      raises each noted signal again (``signal.raise_signal``): its handler runs then, outside
-      any hook. The caller releases inside the region that shuts the forked pool down, so that
-      the KeyboardInterrupt that comes out of it ends the workers.
-
-    A handler left in place (a second signal while the handlers are put back) puts the handlers
-    back at the next signal and passes it on to the one it replaced."""
-
-    def __init__(self) -> None:
-        self.before: dict[int, Callable] = {}
-        self.noted: list[int] = []
-        self.holding = False
-        self.mask: set | None = None  # the thread's mask before, while blocked
-
-    def __call__(self, signum: int, frame) -> None:
-        if self.holding:
-            self.noted.append(signum)
-            return
-        for held, handler in self.before.items():  # (left in place by a signal while they were put back)
-            if signal.getsignal(held) is self:
-                signal.signal(held, handler)
-        self.before[signum](signum, frame)
-
-    def hold(self) -> None:
-        if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
-            return
-        self.holding = True
-        for signum in _HELD_SIGNALS:
-            handler = signal.getsignal(signum)
-            if callable(handler):  # (a Python handler: not the default action, not ignored)
-                self.before[signum] = handler  # (before the swap: :meth:`release` puts back any it finds)
-                signal.signal(signum, self)
-        # (the handlers first: once swapped, no SIGINT or SIGTERM raises until release)
-        self.mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
-
-    def release(self) -> None:
-        """Unblock, put the handlers back, raise what came meanwhile; once (then nothing)."""
-        try:
-            if self.mask is not None:  # (the C call unblocks before any handler runs: this one, noting)
-                signal.pthread_sigmask(signal.SIG_SETMASK, self.mask)
-                self.mask = None
-        finally:
-            self.holding = False
-            try:
-                for signum, handler in self.before.items():
-                    if signal.getsignal(signum) is self:
-                        signal.signal(signum, handler)
-            finally:
-                noted, self.noted = self.noted, []
-                first = None
-                for signum in noted:  # (each, as it came: the command line's second signal ends the process)
-                    try:
-                        signal.raise_signal(signum)
-                    except BaseException as e:
-                        first = first or e
-                if first is not None:
-                    raise first
-
-
-def _end_forked(pool) -> None:
-    """Shut a forked pool whose first ``submit`` failed part way (a fork refused, EAGAIN; the
-    manager thread not started): its shutdown tells no worker to stop, and multiprocessing
-    would wait for the workers already forked at the interpreter's exit, for ever. So they
-    are killed (they ran nothing yet) and reaped first."""
-    started = list((getattr(pool, "_processes", None) or {}).values())
-    for p in started:
-        with contextlib.suppress(Exception):
-            p.kill()
-    for p in started:
-        with contextlib.suppress(Exception):
-            p.join()
-    pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _call_forked(item):
-    token = _SHARE.set(_FORKED_SHARE)
-    try:
-        with using(1):  # (a worker's kernels do not split again)
-            return _FORKED(item)
-    finally:
-        _SHARE.reset(token)
-
-
-def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator[R]:
-    """:func:`ordered` on ``processes`` forked worker processes instead of threads: no
-    interpreter lock is shared, so the Python and numpy between the kernels run at once
-    too. The workers are forked when the call starts, so ``fn`` (any callable: it is not
-    pickled) and what it reads (a frame, its BSP, photon maps) are the caller's, page for
-    page; the items and results are pickled. At most twice ``processes`` calls are in
-    flight. Only where :func:`can_fork`. A worker that dies (killed, out of memory) fails
-    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang; the
-    workers end with this process (:func:`_forked_init`).
-
-    The workers are forked only from a quiet process (:func:`_quiet`: no call in flight on
-    the pools, which are shut down, no other Python thread, numba's compiler lock held),
-    with SIGINT and SIGTERM held across the forks (:class:`_HeldSignals`); where it is not
-    quiet, or another thread's forked pool is running, the items run on ``processes``
-    threads (:func:`ordered`), with the same results.
-
-    The workers and this module's fork lock are held until the generator ends: a caller
-    that may stop taking results early closes it (``contextlib.closing``). A generator left
-    unclosed ends them when it is collected, which a traceback kept (a notebook's
-    ``sys.last_traceback``, whose frames hold it) delays: later calls then run on threads."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    global _FORKED, _FORKED_SHARE
-    items = list(items)
-    if not items or not _FORK_LOCK.acquire(blocking=False):  # (another thread forks: not quiet)
-        yield from ordered(fn, items, processes)
-        return
-    held = _HeldSignals()
-    try:
-        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * min(2 * processes, len(items))
-        pool = None
-        pending = []
-        with _quiet() as quiet:
-            if quiet:
-                holds = not isinstance(_compiler_lock(), contextlib.nullcontext)
-                pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
-                                           initializer=_forked_init, initargs=(holds, os.getpid()))
-                # (with fork the first submit forks every worker, then starts the pool's
-                # manager thread: all the forks happen here, in the quiet process)
-                try:
-                    held.hold()
-                    pending.append(pool.submit(_call_forked, items[0]))
-                except BaseException:  # (a fork refused, EAGAIN: no half-made pool left behind)
-                    _end_forked(pool)
-                    raise
-        if pool is None:
-            _FORKED, _FORKED_SHARE = None, 1
-            yield from ordered(fn, items, processes)
-            return
-        with pool:
-            nxt = 1
-            try:
-                held.release()  # (a signal held across the forks raises here: the pool is shut down)
-                while nxt < len(items) or pending:
-                    while nxt < len(items) and len(pending) < 2 * processes:
-                        pending.append(pool.submit(_call_forked, items[nxt]))
-                        nxt += 1
-                    yield pending.pop(0).result()
-            finally:
-                for f in pending:
-                    f.cancel()
-    finally:
-        try:
-            held.release()  # (where the forks failed; else done already)
-        finally:
-            _FORKED, _FORKED_SHARE = None, 1
-            _FORK_LOCK.release()
-
-
 def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:
     """``fn(start, stop)`` of the :func:`spans` of ``n_items``, the results in chunk order."""
     return list(ordered(lambda s: fn(*s), spans(n_items, min_chunk)))
+
+
+threads_forked.attach(sys.modules[__name__])  # (the forked pool reads this module's pools and settings)
