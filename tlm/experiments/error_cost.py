@@ -104,6 +104,7 @@ from tlm.caches import cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, file_folder, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError, shell_word
+from tlm.experiments.error_cost_blur import StudyBlur
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.error_cost_frame import frame_functional, frame_time
 from tlm.experiments.error_cost_frame import others_key as _others_key
@@ -325,7 +326,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     ground truth); ``warned`` each warning line, in place of stderr (None: printed there; the reference not
     converged, or not cached: :func:`study_warning`; a ``--set`` or points value that sets nothing,
     ``render={}``, before any work: :func:`empty_lines`, naming the overrides ``via``; the frame's camera that
-    faces nothing; a black reference or ground truth, :func:`black_lines`; a truth of few samples). Those lines,
+    faces nothing; a black reference or ground truth, :func:`black_lines`; a truth of few samples; once the points
+    ran, those measured against a reference much blurrier than their photons, :class:`StudyBlur`). Those lines,
     each once, are kept in ``reference.json``'s ``warnings``, which the report lists (h417).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
@@ -400,6 +402,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     clock = CompileClock()
     warm = WarmUp(frame0, g, clock)
     dominated: list[int] = []  # (the point whose truth error one pixel carried: said for the first alone)
+    blur = StudyBlur(scene.photons, key, off=black["reference_black"])  # (its points' blur line, once: h483)
 
     def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
         i, point, cfg = item
@@ -421,6 +424,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             one_off += once
             maps[map_key] = (traced, t1 - t0 - once)
         traced, trace_s = maps[map_key]
+        blur.add(i, factors_text(point), cfg, traced.photons)
         for m, k in density_requests(frame, traced.photons, gathered_only=True):  # (each one its gathers use)
             if (id(m), k) not in density_s:  # (made once; counted by every point that asks for it)
                 t0 = time.perf_counter()
@@ -483,6 +487,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
+                         finish=lambda rows, _tmp: blur.said(say, rows),
                          files=lambda rows: {"reference.json": {"key": key, **ref_meta,
                                                                 "reference_converged": converged,
                                                                 "computed": computed, **black,

@@ -598,6 +598,27 @@ def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int
     return out
 
 
+def widest_map(cfg: RunConfig, emitted: int | dict | None, scene_photons: int | None) -> tuple | None:
+    """``(ratio, map, the run's photons a round, the reference's, the run's kernel photons, the key that gives
+    them, the reference's photons, the run's emitted)`` of the photon map of :func:`_per_map` whose reference
+    kernel is the widest against the run's (``ratio``: its area over the run's; past :data:`BLUR_RATIO`,
+    :func:`blur_warnings`' line; ``tlm error-vs-cost`` weighs its points by it); None where none compares."""
+    n_ref = scene_photons if cfg.reference.photons is None else cfg.reference.photons
+    total = emitted.get("emitted") if isinstance(emitted, dict) else emitted
+    if not isinstance(n_ref, int) or n_ref <= 0 or not isinstance(total, int) or total <= 0:
+        return None
+    maps = [(cfg.reference.k_nearest * run / (ref * k), name, run, ref, k, how, n_ref, total)
+            for name, run, ref, k, how in _per_map(cfg, emitted, n_ref, scene_photons)]
+    return max(maps, default=None, key=lambda m: m[0])
+
+
+def reference_share(cfg: RunConfig, ref: Fraction, n_ref: int) -> str:
+    """The reference's photons a round that a map gets (:func:`widest_map`), in words: all, or half."""
+    whose = f"reference.photons {n_ref}" if cfg.reference.photons is not None else \
+        f"the scene's {n_ref}: reference.photons null"
+    return f"{n_ref} a round ({whose})" if ref == n_ref else f"{math.floor(ref)} a round (half of {whose})"
+
+
 def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | dict | None,
                   scene_photons: int | None) -> list[str]:
     """A line when the photon-map frame's error was measured (``error`` ``available``) against a reference whose
@@ -609,23 +630,12 @@ def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | dict | None
     the error (``error.rmse``, ``error.rel_mse``) may measure that blur more than the run's noise (h453); the line
     names the worst map, both counts and the ``reference.photons`` to give. None the other way round (h478: a
     run blurrier than its reference has its own blur measured, as the error should)."""
-    if not (error and error.get("available")) or emitted is None:
-        return []
-    given = cfg.reference.photons
-    n_ref = scene_photons if given is None else given
-    total = emitted.get("emitted") if isinstance(emitted, dict) else emitted
-    if not isinstance(n_ref, int) or n_ref <= 0 or not isinstance(total, int) or total <= 0:
-        return []
-    maps = [(cfg.reference.k_nearest * run / (ref * k), name, run, ref, k, how)
-            for name, run, ref, k, how in _per_map(cfg, emitted, n_ref, scene_photons)]
-    wide = max(maps, default=None, key=lambda m: m[0])
+    wide = widest_map(cfg, emitted, scene_photons) if error and error.get("available") else None
     if wide is None or wide[0] <= BLUR_RATIO:
         return []
-    ratio, name, run, ref, k, how = wide
-    whose = f"reference.photons {n_ref}" if given is not None else f"the scene's {n_ref}: reference.photons null"
-    share = f"{n_ref} a round ({whose})" if ref == n_ref else f"{math.floor(ref)} a round (half of {whose})"
+    ratio, name, run, ref, k, how, n_ref, total = wide
     return [f"the photon-map frame's {name} map gets {run} of the {total} photons it emits, and that map of its "
-            f"reference {error['reference']} gets {share}: each k-NN round of the reference "
+            f"reference {error['reference']} gets {reference_share(cfg, ref, n_ref)}: each k-NN round of the reference "
             f"({cfg.reference.k_nearest} photons: reference.k_nearest) "
             + (f"gathers over {float(ratio):.2f}x the area of this run's gathers of {k} ({how})" if how else
                f"gathers in a map {float(ratio):.2f}x sparser than this run's")
