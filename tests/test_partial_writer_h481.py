@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import tlm.experiments.reference_resume as reference_resume
+from tests.test_probe_h474 import SCENE  # (a floor and a ceiling light, in a scene file that gives no photons)
 from tlm import cache_admin
 from tlm.cli import main
 from tlm.errors import InputError
@@ -128,16 +129,6 @@ def test_rounds_whose_writers_id_another_process_has_now_are_no_live_computes(ca
     assert said()[:2] == (INTERRUPTED, False)
 
 
-# a floor and a ceiling light, in a scene file that gives no photons
-SCENE = ("geometry:\n"
-         "  - {shape: plane, name: floor, params: {size: [2.0, 2.0]}}\n"
-         "materials:\n"
-         "  floor: {type: lambertian, albedo: [0.7, 0.7, 0.7]}\n"
-         "parts: {floor: floor}\n"
-         "lights:\n"
-         "  - {type: quad, corner: [-0.2, 1.5, -0.2], edge_u: [0.4, 0, 0], edge_v: [0, 0, 0.4], power: [10, 10, 10]}\n"
-         "camera: {eye: [0, 0.8, 3], target: [0, 0.5, 0], vfov: 50}\n"
-         "resolution: [8, 8]\n")
 REFERENCE_LINE = ("photons: a photon-map reference is the estimate of each round's photons alone, but the scene file "
                   "gives no photons (no photons:, or 0) and the config's reference.photons is null, so no photon "
                   "would be traced and the reference would have nothing to estimate (every pixel 0): add `photons: "
