@@ -83,6 +83,8 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
     # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
     # (a numpy array or a tuple reads as the list it holds, as in load_config)
     path = resolve_scene_path(str(scene), folder, config_source=str(scene))
+    if path.is_symlink() and path.resolve().is_file():  # (/dev/stdin < my.yaml: its meshes from my.yaml's folder,
+        path = path.resolve()  # as tlm run reads a scene file it is given, not /dev's)
     return load(path, folder, None if resolution is None else plain(resolution), config_source="(load_scene)")
 
 
