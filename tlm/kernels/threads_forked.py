@@ -223,15 +223,27 @@ def _end_forked(pool) -> None:
     manager thread not started), or whose manager thread ended (:func:`_outcome`): its shutdown
     tells no worker to stop, and multiprocessing would wait for the workers already forked at
     the interpreter's exit, for ever. So they are killed (what they run is given up) and
-    reaped first."""
-    started = list((getattr(pool, "_processes", None) or {}).values())
-    for p in started:
+    reaped first. A manager thread whose start was refused ("can't start new thread") is not
+    joined (that raised "cannot join thread before it is started" over the refusal)."""
+    _kill(list((getattr(pool, "_processes", None) or {}).values()))
+    manager = getattr(pool, "_executor_manager_thread", None)
+    if manager is not None and manager.ident is None:  # (never started)
+        pool._executor_manager_thread = None
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _kill(workers: list) -> None:
+    """The forked ``workers`` not yet reaped killed (what they run is given up), then reaped.
+    :func:`forked` calls it too where a pool's manager thread ended before a wait saw it (the
+    caller stopped taking results first: its own error, Ctrl-C): the pool's shutdown, the
+    manager's work, told no worker to stop, and the interpreter's exit would join them for ever."""
+    for p in workers:
         with contextlib.suppress(Exception):
-            p.kill()
-    for p in started:
+            if p.exitcode is None:
+                p.kill()
+    for p in workers:
         with contextlib.suppress(Exception):
             p.join()
-    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _manager_errors() -> None:
@@ -293,8 +305,9 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     page; the items and results are pickled. At most twice ``processes`` calls are in
     flight. Only where :func:`~tlm.kernels.threads.can_fork`. A worker that dies (killed, out of memory) fails
     the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang, and
-    so does the pool's manager thread that ends (:func:`_outcome`: the error that ended it); the
-    workers end with this process (:func:`_forked_init`).
+    so does the pool's manager thread that ends (:func:`_outcome`: the error that ended it; its
+    workers killed, there or where the caller stopped taking results first); the workers end
+    with this process (:func:`_forked_init`).
 
     The workers are forked only from a quiet process (:func:`_quiet`: no call in flight on
     the pools, which are shut down, no other Python thread, numba's compiler lock held),
@@ -338,18 +351,25 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
             _FORKED, _FORKED_SHARE = None, 1
             yield from _pools.ordered(fn, items, processes)
             return
-        with pool:
-            nxt = 1
-            try:
-                held.release()  # (a signal held across the forks raises here: the pool is shut down)
-                while nxt < len(items) or pending:
-                    while nxt < len(items) and len(pending) < 2 * processes:
-                        pending.append(pool.submit(_call_forked, items[nxt]))
-                        nxt += 1
-                    yield _outcome(pool, pending.pop(0))
-            finally:
-                for f in pending:
-                    f.cancel()
+        manager = getattr(pool, "_executor_manager_thread", None)  # (the first submit's, and its workers)
+        workers = list((getattr(pool, "_processes", None) or {}).values())
+        try:
+            with pool:
+                nxt = 1
+                try:
+                    held.release()  # (a signal held across the forks raises here: the pool is shut down)
+                    while nxt < len(items) or pending:
+                        while nxt < len(items) and len(pending) < 2 * processes:
+                            pending.append(pool.submit(_call_forked, items[nxt]))
+                            nxt += 1
+                        yield _outcome(pool, pending.pop(0))
+                finally:
+                    for f in pending:
+                        f.cancel()
+        finally:  # (a manager thread that ended before a wait saw it, the caller having stopped taking
+            # results first, told no worker to stop: those left are killed; a shutdown's manager joined all)
+            if manager is not None and not manager.is_alive():
+                _kill(workers)
     finally:
         try:
             held.release()  # (where the forks failed; else done already)
