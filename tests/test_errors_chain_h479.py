@@ -202,3 +202,17 @@ def test_reference_cut_short_finds_the_saved_rounds_deep_in_the_chain_or_in_a_lo
     with pytest.raises(KeyboardInterrupt) as bare, reference_cut_short():  # (none saved: the interrupt as it is)
         raise none_saved
     assert bare.value is none_saved
+
+
+def test_a_forked_worker_that_ended_abruptly_under_an_address_space_limit_is_out_of_memory(monkeypatch):
+    """(h485: at ulimit -v 452000 a forked worker died and the command said an internal error, with a traceback.)"""
+    from concurrent.futures.process import BrokenProcessPool
+
+    broken = BrokenProcessPool("A process in the process pool was terminated abruptly while the future was running")
+    monkeypatch.setattr(errors, "address_space_limit", lambda: 452000 * 1024)
+    line = errors.memory_problem(broken)
+    assert line == ("out of memory: a forked worker process ended abruptly (A process in the process pool was "
+                    "terminated abruptly while the future was running) (the address space of this process is "
+                    "limited to 441 MiB: ulimit -v)")
+    monkeypatch.setattr(errors, "address_space_limit", lambda: None)  # (no limit: a worker's crash is tlm's own)
+    assert errors.memory_problem(broken) is None

@@ -220,6 +220,7 @@ def chain(e: BaseException | None) -> Iterator[BaseException]:
         e = e.__cause__ or e.__context__
 
 
+BROKEN_POOL = "BrokenProcessPool"  # concurrent.futures.process': a worker of a process pool ended abruptly
 UNMAPPED = "failed to map segment from shared object"  # the dynamic loader's words for a library it could not map
 
 
@@ -229,13 +230,17 @@ def memory_problem(e: BaseException | None) -> str | None:
     ``Unable to allocate 8.24 MiB for an array ...``) and the limit on the address space where one
     is set (``ulimit -v``); under such a limit, a library that could not be mapped as it was loaded
     (an ImportError or ctypes' OSError: ``... failed to map segment from shared object``, a
-    module imported late, as matplotlib's for a report) is out of memory too. None where the
-    chain holds none. The machine's fault, not tlm's: one line, exit status 1, as a full disk."""
+    module imported late, as matplotlib's for a report) is out of memory too, and so is a forked
+    worker process that ended abruptly (concurrent.futures' BrokenProcessPool: numba's LLVM aborts,
+    a C allocation fails, where the parent's limit is the workers' too). None where the chain holds
+    none. The machine's fault, not tlm's: one line, exit status 1, as a full disk."""
     limit = address_space_limit()
-    e = next((c for c in chain(e) if isinstance(c, MemoryError) or (
-        limit is not None and isinstance(c, (ImportError, OSError)) and UNMAPPED in str(c))), None)
+    e = next((c for c in chain(e) if isinstance(c, MemoryError) or (limit is not None and (
+        (isinstance(c, (ImportError, OSError)) and UNMAPPED in str(c)) or type(c).__name__ == BROKEN_POOL))), None)
     if e is None:
         return None
+    if type(e).__name__ == BROKEN_POOL:  # (its own words name no memory: a worker "terminated abruptly")
+        e = MemoryError(f"a forked worker process ended abruptly ({' '.join(str(e).split())})")
     text = " ".join(str(e).split())
     line = f"out of memory: {text}" if text else "out of memory"
     if limit is not None:
