@@ -150,7 +150,7 @@ def test_a_sweep_with_such_a_point_is_refused_before_it_runs(tmp_path, capsys):
                     "  arch.tiles_per_pipeline: 4096\ngrid:\n  arch.scheduler: [static, dynamic]\n")
     assert main(["sweep", str(spec), "--dry-run", "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
-    assert f"(point 1: arch.scheduler='dynamic'): {SAID}\n" in err and err.count("tlm: error:") == 1, err
+    assert f"(point 1: arch.scheduler=dynamic): {SAID}\n" in err and err.count("tlm: error:") == 1, err
     assert main(["sweep", str(spec), "--out", str(tmp_path / "s")]) == 2
     assert not (tmp_path / "s").exists()
 

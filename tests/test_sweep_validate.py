@@ -20,7 +20,7 @@ import yaml
 import tlm.experiments.sweep_file as sweep_mod
 import tlm.fingerprint as fingerprint
 from tlm.config import config_from_dict
-from tlm.config_words import dump_yaml
+from tlm.config_words import dump_yaml, value_text
 from tlm.errors import InputError
 from tlm.experiments.sweep_file import Point, Sweep, _assign, expand, load_sweep
 
@@ -107,7 +107,7 @@ def _first_error(path: Path) -> str:
         point = fixed
         for k, v in factors.items():
             point = _assign(point, k, v)
-        shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
+        shown = ", ".join(f"{k}={value_text(v)}" for k, v in factors.items())
         try:
             config_from_dict(point, f"{path} (point {i}: {shown})")
         except InputError as e:
@@ -148,7 +148,7 @@ def test_every_config_is_checked_before_any_file_is_read(tmp_path):
     with pytest.raises(InputError) as got:
         load_sweep(path)
     assert str(got.value) == _first_error(path)
-    assert "point 1: scene='nowhere.yaml', arch.fifo_depth=0" in str(got.value)
+    assert "point 1: scene=nowhere.yaml, arch.fifo_depth=0" in str(got.value)
 
 
 def test_each_factor_value_is_checked_once(tmp_path, fixed_inputs, monkeypatch):

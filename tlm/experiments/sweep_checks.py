@@ -1,11 +1,15 @@
 """The checks of a sweep's points once expanded (out of :mod:`tlm.experiments.sweep_file`, which imports every
 name from here under its old name, :func:`one_run_one_row` as ``_one_run_one_row``): no two points of other
-factor values are one run (:func:`one_run_one_row`), and every scene file a point names is found
-(:func:`scenes_found`). Each refusal is an :class:`~tlm.errors.InputError` naming the points and the keys.
+factor values are one run (:func:`one_run_one_row`), nor one result rendered twice (:func:`same_setting`:
+``render.batch``, a null ``arch.programs`` beside tlm's own table), and every scene file a point names is found
+(:func:`scenes_found`). Each refusal is an :class:`~tlm.errors.InputError` naming the points and the keys. After
+the points ran, a null that resolved to another value of its factor (:func:`resolved_nulls`: ``bsp.levels``).
 """
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +54,8 @@ def one_run_one_row(points: list, src: str) -> None:
     with values never run. So is one value written two ways (``1000000000`` and ``1.0e+9`` of
     ``arch.clock_hz``, a float), which :func:`tlm.experiments.sweep_factors.given_once` takes for two, one file named
     two ways (``box.yaml`` and ``./box.yaml``: one absolute path once read), and values that give
-    one config (``photons: [{}, null]`` where the base has no ``photons``: its defaults either way)."""
+    one config (``photons: [{}, null]`` where the base has no ``photons``: its defaults either way). Then
+    :func:`same_setting`."""
     first: dict[str, Any] = {}  # (tlm.experiments.sweep_file.Point)
     for p in points:
         other = first.setdefault(p.hash, p)
@@ -79,3 +84,98 @@ def one_run_one_row(points: list, src: str) -> None:
                              f"(render.threads changes no result, only the host's speed), so they would be one run "
                              "with two labels: give render.threads under set:, and time thread counts with "
                              "benchmarks/bench_threads.py", source=src, key=", ".join(differ))
+    same_setting(points, src)
+
+
+# the keys that change the host's speed or memory alone, each with what it changes (their points' work, cycles
+# and radiance are bit-identical for every value: tlm.kernels.traverse.closest_hit, tlm.render.batches); the point's
+# key leaves out render.threads alone (one_run_one_row's first check), the others are in it, as in the frame's
+HOST_ONLY = {"render.threads": "speed", "render.batch": "speed", "render.batch_rays": "memory"}
+NULL_PROGRAMS = "arch.programs"  # (null: tlm's own table, tlm.arch.costs.DEFAULT_PATH)
+# what no sweep point reads, besides what its run never reads (tlm.render.planner.inert_settings): a sweep writes no
+# image (its rows are the work, the cycles, the host's seconds and the radiance's errors), which the exposure scales
+NO_IMAGE = {"render.exposure": "a sweep writes no image, and the exposure scales only the pictures tlm run writes "
+                               "(not the work, the cycles or the radiance's errors)"}
+
+
+def same_setting(points: list, src: str) -> None:
+    """An InputError where two points differ only in what changes no result: in a key of :data:`HOST_ONLY`
+    (``render.batch: [1, 4]``: one result rendered twice, with two labels), or in an ``arch.programs`` given
+    null and as the table null resolves to (``tlm/arch/programs.yaml``, by any path); judged only where a
+    factor sets one of those keys."""
+    from tlm.arch.costs import DEFAULT_PATH
+    from tlm.experiments.sweep_factors import keys_given
+
+    watched = {*HOST_ONLY, NULL_PROGRAMS}
+    # (the factors of those keys or of their sections, each value once: a sweep of 10^5 points is checked in seconds)
+    near = [f for f in (points[0].factors if points else ()) if any(k == f or k.startswith(f + ".") for k in watched)]
+    if not any(set(keys_given(f, list({id(p.factors[f]): p.factors[f] for p in points}.values()))) & watched
+               for f in near):
+        return
+    table = os.path.realpath(DEFAULT_PATH)
+    first: dict[str, Any] = {}
+    for p in points:
+        render = {k: v for k, v in (p.config.get("render") or {}).items() if f"render.{k}" not in HOST_ONLY}
+        arch = dict(p.config.get("arch") or {})
+        arch["programs"] = table if arch.get("programs") is None else os.path.realpath(arch["programs"])
+        other = first.setdefault(json.dumps({**p.config, "render": render, "arch": arch}, sort_keys=True,
+                                            default=str), p)
+        if other is p:
+            continue
+        differ = [k for k in p.factors if value_identity(p.factors[k]) != value_identity(other.factors.get(k))]
+        tables = [k for k in differ if k in ("arch", NULL_PROGRAMS)
+                  and resolved_value(p.config, NULL_PROGRAMS) != resolved_value(other.config, NULL_PROGRAMS)]
+        if tables:
+            both = (f"{k}: {value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in tables)
+            null = None in (resolved_value(p.config, NULL_PROGRAMS), resolved_value(other.config, NULL_PROGRAMS))
+            said = f" (null is tlm's own, {table})" if null else ""
+            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both) + " give one "
+                             f"programs table{said}: give one of them", source=src, key=", ".join(tables))
+        keys = [k for k in HOST_ONLY if resolved_value(p.config, k) != resolved_value(other.config, k)]
+        if not keys:  # (nothing this check knows of: the run's own)
+            continue
+        what = " and ".join(sorted({HOST_ONLY[k] for k in keys}))
+        raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} ({', '.join(keys)} "
+                         f"{'changes' if len(keys) == 1 else 'change'} no result, only the host's {what}: the work, "
+                         "cycles and images are bit-identical for every value), so they would render one result "
+                         f"twice, with two labels: give {', '.join(keys)} under set:, and compare values with tlm "
+                         f"run --set {keys[0]}=N (results.json's host_seconds; the process's peak memory)",
+                         source=src, key=", ".join(differ))
+
+
+# a factor whose null the run resolves from its scene (the BSP's depth, the photons), which no point's config holds
+# before it runs: where results.json records it, and the words of what null is
+RESOLVED_NULLS = {"bsp.levels": (("scene", "bsp", "requested_levels"), "floor(ln n) of the scene's {} triangles"),
+                  "photons.count": (("scene", "photons"), "the scene's own count")}
+
+
+def resolved_nulls(path: Any, factors: list[str], done: list[tuple[Any, dict]], skip: set[str]) -> list[str]:
+    """A warning line per factor of :data:`RESOLVED_NULLS` (not in ``skip``) with a point given null and one given
+    the value that null resolved to in it (its ``results.json``), the other factors alike: the two are one run,
+    run twice (``bsp.levels: [null, 7]`` on cornell's 2604 triangles, floor(ln 2604) = 7), as
+    :func:`tlm.experiments.sweep_factors.given_once` refuses a value given twice where it can tell before any
+    point runs. ``done``: ``(point, its results)`` of the points that ran and did not fail."""
+    lines = []
+    for factor in [f for f in factors if f in RESOLVED_NULLS and f not in skip]:
+        where, what = RESOLVED_NULLS[factor]
+        given: dict[tuple, dict[str, Any]] = {}  # the other factors' values -> this one's value -> its point
+        nulls = []
+        for point, results in done:
+            rest = tuple(value_identity(v) for k, v in point.factors.items() if k != factor)
+            value = point.factors.get(factor)
+            given.setdefault(rest, {}).setdefault(value_identity(value), point)
+            if value is None:
+                got: Any = results
+                for part in where:
+                    got = got.get(part) if isinstance(got, dict) else None
+                if isinstance(got, int) and not isinstance(got, bool):
+                    nulls.append((rest, point, got, ((results.get("scene") or {}).get("triangles"))))
+        pairs = [(point, given[rest][value_identity(got)], got, n) for rest, point, got, n in nulls
+                 if value_identity(got) in given[rest]]
+        if pairs:
+            null, other, got, n = pairs[0]
+            more = f" (and {len(pairs) - 1} more such pair{'s' if len(pairs) > 2 else ''})" if len(pairs) > 1 else ""
+            lines.append(f"{path}: the factor {factor}: null and {value_text(got)} were one setting at points "
+                         f"{null.index} and {other.index}{more} (null is {what.format(n)}, {value_text(got)} "
+                         "there), so they ran one run twice: give one of them")
+    return lines

@@ -47,14 +47,14 @@ def dotted_keys(section: Any, name: str, src: str, lists: bool) -> dict[str, Any
     if section is None:
         return {}
     if not isinstance(section, dict):
-        raise InputError(f"must be a mapping of dotted keys, got {section!r}", source=src, key=name)
+        raise InputError(f"must be a mapping of dotted keys, got {value_text(section)}", source=src, key=name)
     for k, v in section.items():
         if not isinstance(k, str) or not k or any(not p for p in k.split(".")):
             shown = repr(k) if isinstance(k, str) else value_text(k)  # (a YAML key null, true or 1 as written)
             raise InputError(f"{shown} is not a dotted config key", source=src, key=name)
         if lists:
             if not isinstance(v, list):
-                raise InputError(f"{v!r} is not a list of values", source=src, key=f"{name}.{k}")
+                raise InputError(f"{value_text(v)} is not a list of values", source=src, key=f"{name}.{k}")
             if not v:
                 raise InputError("has no values", source=src, key=f"{name}.{k}")
     return dict(section)

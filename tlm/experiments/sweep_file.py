@@ -44,7 +44,9 @@ from tlm.config import (
 from tlm.config_words import Dumper, dump_yaml, sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.study import override_key, refuse_own_keys, scene_keys, with_set
+from tlm.experiments.sweep_checks import NO_IMAGE as _NO_IMAGE
 from tlm.experiments.sweep_checks import one_run_one_row as _one_run_one_row
+from tlm.experiments.sweep_checks import resolved_nulls as _resolved_nulls
 from tlm.experiments.sweep_checks import resolved_value as _resolved  # noqa: F401  (kept importable from here)
 from tlm.experiments.sweep_checks import scenes_found as _scenes_found
 from tlm.experiments.sweep_factors import assign as _assign
@@ -113,12 +115,13 @@ class Sweep:
     def inert_factors(self) -> list[str]:
         """A warning line per factor that changes nothing in any point
         (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
-        filter, ``photons.count`` in mode rcast): its points would be the same run. Then one per value of a
+        filter, ``photons.count`` in mode rcast; ``render.exposure``, as a sweep writes no image:
+        :data:`~tlm.experiments.sweep_checks.NO_IMAGE`): its points would be the same run. Then one per value of a
         factor that sets nothing (a section's mapping that names no key, ``grid: {render: [{}, ...]}``, which
         merges into the base's section: :func:`_keys_given`; null gives the section at its defaults)."""
         lines = []
         for factor in self.factors:
-            whys = {i.get(factor) for i in self.inert}
+            whys = {i.get(factor, _NO_IMAGE.get(factor)) for i in self.inert}  # (and the exposure: no image)
             if self.inert and None not in whys:
                 lines.append(f"{self.path}: the factor {factor} changes nothing in any point: {said_once(whys)}")
         for where, section in (("grid", self.grid), ("zip", self.zip)):
@@ -144,9 +147,9 @@ class Sweep:
         """Why ``key`` changes nothing, each point's reason (a section, ``estimate`` of ``--set estimate=null``:
         each of its keys'), or None where some point reads it."""
         keys = [k for k, _, _ in describe() if k.startswith(key + ".")] if key in SECTIONS else [key]
-        if not self.inert or not all(k in i for i in self.inert for k in keys):
+        if not self.inert or not all(k in i or k in _NO_IMAGE for i in self.inert for k in keys):
             return None
-        return {i[k] for i in self.inert for k in keys}
+        return {i.get(k, _NO_IMAGE.get(k)) for i in self.inert for k in keys}
 
     def inert_sets(self) -> list[str]:
         """A warning line per ``--set`` of the sweep that changes nothing in any point, by the rule of
@@ -185,7 +188,9 @@ class Sweep:
         image in flight, ...). A factor gets a line when every point in ``done`` (``(point,
         its results)``, the points that ran and did not fail) names it there or holds it at
         its default (a run the others then equal), and one names it at least; not the
-        factors :meth:`inert_factors` named before the points ran."""
+        factors :meth:`inert_factors` named before the points ran. Then a line per factor whose null
+        resolved to another of its values, the other factors alike (``bsp.levels: [null, 7]`` on
+        cornell: :func:`~tlm.experiments.sweep_checks.resolved_nulls`)."""
         if not done:
             return []
         said = {f for f in [*self.factors, *self.set_keys()] if self._inert_whys(f) is not None}
@@ -208,8 +213,11 @@ class Sweep:
             if whys and factor in self.factors:
                 lines.append(f"{self.path}: the factor {factor} changed nothing in {where}: "
                              f"{said_once(whys)}")
+                said.add(factor)
             elif whys:  # (a key of a --set: said as the --set that gave it)
                 sets[factor] = whys
+        # (then a factor's null and the value it resolved to, bsp.levels: [null, 7] on cornell: one run twice)
+        lines += _resolved_nulls(self.path, self.factors, done, said)
         return [*lines, *self._set_lines(sets, f"changed nothing in {where}")]
 
     def identity(self) -> str:
@@ -437,7 +445,6 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
     if len(set(lengths.values())) > 1:
         raise InputError(f"lists of unequal length ({', '.join(f'{k}: {n}' for k, n in lengths.items())})",
                          source=src, key="zip")
-    _given_once(grid, zipped, src)
     seen: dict[str, tuple[str, str]] = {}  # each key set so far (a section's mapping: those it names): by what
     for name, section in (("set", settings), ("grid", grid), ("zip", zipped)):
         for k, v in section.items():
@@ -490,7 +497,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
             point = fixed
             for k, v in factors.items():
                 point = _assign(point, k, moved(k, v))
-            shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
+            shown = ", ".join(f"{k}={value_text(v)}" for k, v in factors.items())  # (as YAML writes them: null)
             try:
                 fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
             except InputError as e:  # (named by what gave the key: a --set's, not a factor's, says so)
@@ -499,6 +506,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
                     raise
                 raise named(e, f"{label} (point {i}: {shown})") from None
         rows.append((i, factors, fields))
+    _given_once(grid, zipped, src)  # (after each value's own check: [32, 32] of resolution is no [w, h] twice)
     from tlm.render.planner import inert_settings
 
     inert, known = [], {}
