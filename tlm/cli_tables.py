@@ -54,6 +54,13 @@ def _two_n(fit: dict) -> str:
     return f" alone, a test of nothing: eq. 5.2 {eq52}; slowest-pipeline variant: {slowest}"
 
 
+def _error(fit: dict, whole: dict) -> str:
+    """A fit's largest |error| on ``tlm scaling``'s line: ``untested`` where a fit of three or more N tests nothing
+    (``tested`` false: every point Vertex-bound, h488; the note above says why), else the percentage."""
+    flat = fit.get("tested") is False and len(whole["pipelines"]) > 2
+    return "untested" if flat else f"{fit['max_abs_rel_error']:6.1%}"
+
+
 def print_scaling(done: dict, out: Path) -> None:
     """What ``tlm scaling`` prints of its fits."""
     for note in done["notes"]:
@@ -67,8 +74,8 @@ def print_scaling(done: dict, out: Path) -> None:
         combination = f"{f.get('group') or '':{group}s} " if group else ""
         print(f"  {f['scene']:{wide['scene']}s} {f['mode']:{wide['mode']}s} {f['scheduler']:{wide['scheduler']}s} "
               f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
-              f"max |error| {f['max_abs_rel_error']:6.1%}; "
-              f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
+              f"max |error| {_error(f, f)}; "
+              f"slowest-pipeline variant: max |error| {_error(f['slowest'], f)} "
               f"(N = {values_text(f['pipelines'])}{_two_n(f)})")
     # (the latency is images in flight x TThru at every point of a group: its fit is the throughput fit scaled)
     lat = [f for f in fits if f["target"] == "latency"]

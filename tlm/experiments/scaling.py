@@ -49,8 +49,9 @@ points are left out, each named in the notes; so is a point whose stream was too
 for a steady state (``throughput_steady`` false: its TThru includes the fill and drain),
 which is fitted all the same. :func:`analyse` writes ``eq52.csv`` (per point:
 simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
-largest error, per group; ``fitted_from``: per sweep folder, the hashes of the points
-its ``sweep.yaml`` listed and of those fitted, which :func:`out_of_date` compares with
+largest error, per group; ``tested`` false and ``why`` where a fit tests nothing, :func:`flat_why`: every point
+Vertex-bound at every N, h488; ``vertex_bound``, the N whose TThru is T_vert0; ``fitted_from``: per sweep
+folder, the hashes of the points its ``sweep.yaml`` listed and of those fitted, which :func:`out_of_date` compares with
 the folder as it is later), ``provenance.json`` and one figure per scene
 (``scaling_<scene>.png``, :func:`figure_files`: two scenes whose names give one file name get
 two files): simulated and analytical T_tot against N, and the speed-up
@@ -73,8 +74,11 @@ from tlm.experiments.provenance import identities_remembered, scene_identity, sc
 from tlm.experiments.scaling_dated import (  # noqa: F401  (moved; the old names)
     SWEEP_READ,
     entry_out_of_date,
+    flat_why,
     out_of_date,
     sweep_points,
+    untested_notes,
+    vertex_bound,
 )
 from tlm.experiments.study import run_study
 from tlm.experiments.sweep_rows import one_row_each
@@ -423,7 +427,10 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
                      "rel_error": round((model - p[target]) / p[target], 6) if p[target] else 0.0,
                      "T_vert0": v, "sum_max_per_N": round(p["sum_max"] / n), "speedup": round(t1 / p[target], 4)})
     worst = max(abs(r["rel_error"]) for r in rows)
-    return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows}
+    why = flat_why(by_n, target, [y for _, y in xs], [x for x, _ in xs])
+    vertex = [n for n in sorted(by_n) if vertex_bound(by_n[n])]
+    return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows, "tested": why is None,
+            **({"why": why} if why else {}), **({"vertex_bound": vertex} if vertex else {})}
 
 
 def differing(points: list[dict]) -> dict[str, list[tuple[int, str]]]:
@@ -460,7 +467,8 @@ def fit_both(points: list[dict], target: str, source: str | None = None) -> dict
     for r, q in zip(f["rows"], g["rows"]):
         r["analytical_slowest"] = q["analytical"]
         r["rel_error_slowest"] = q["rel_error"]
-    f["slowest"] = {"A": g["A"], "B": g["B"], "max_abs_rel_error": g["max_abs_rel_error"]}
+    f["slowest"] = {"A": g["A"], "B": g["B"], "max_abs_rel_error": g["max_abs_rel_error"], "tested": g["tested"],
+                    **({"why": g["why"]} if "why" in g else {})}
     return f
 
 
@@ -598,10 +606,13 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
         summary.append({"scene": scene, "scene_file": files.get(scene), "mode": mode, "scheduler": sched,
                         "target": target, **group, "A": f["A"], "B": f["B"],
                         "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
+                        **{k: f[k] for k in ("tested", "why", "vertex_bound") if k in f},
                         "pipelines": [r["pipelines"] for r in f["rows"]],
                         **({"latency_multiple": f["latency_multiple"]} if "latency_multiple" in f else {})})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r, **group}
                      for r in f["rows"])
+
+    notes.extend(untested_notes(fits))  # (a fit that tests nothing: every point Vertex-bound, h488)
 
     def figures(_point, tmp: Path) -> list[dict]:
         for scene, file in figure_files({k[0] for k in fits} if plot else ()).items():

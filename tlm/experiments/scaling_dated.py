@@ -1,7 +1,8 @@
 """Whether a ``tlm scaling`` fit still shows its sweeps as they are (moved out of
 :mod:`tlm.experiments.scaling`, which re-exports these names): the points a sweep lists and has
 finished (:func:`sweep_points`, read by :data:`SWEEP_READ`), and the lines on a fit whose sweeps now
-hold other points (:func:`out_of_date`, :func:`entry_out_of_date`)."""
+hold other points (:func:`out_of_date`, :func:`entry_out_of_date`); and the notes on fits that test nothing
+(:func:`untested_notes`) and why a fit tests nothing (:func:`flat_why`)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from typing import Any
 import yaml
 
 from tlm.config_words import safe_load  # (yaml.safe_load, its aliases bounded)
-from tlm.errors import InputError
+from tlm.errors import InputError, values_text
 from tlm.experiments.sweep_rows import one_row_each
 from tlm.storage import read_jsonl
 
@@ -80,4 +81,52 @@ def entry_out_of_date(folder: Path, entry: dict) -> str | None:
         what = "; ".join(w for w in (f"{more} finished since" if more else "",
                                      f"{less} of the fitted ones no longer finished" if less else "") if w)
         return f"out of date: its sweep {sweep} has other finished points than it was fitted from ({what}); {rerun}"
+    return None
+
+
+def untested_notes(fits: dict[tuple, dict]) -> list[str]:
+    """The notes on fits of three or more N that test nothing (a fit's ``tested`` false: its ``why``, one line per
+    reason, naming the fits; h488) and on groups of which some N are Vertex-bound (TThru the Vertex PM's T_vert0:
+    the fit keeps them, and there the pipelines' work shows in nothing), keyed as :func:`fit_key` keys them. A fit
+    of two values of N is said where its error is shown (``tlm scaling``'s line, the report's caption)."""
+    why: dict[str, list[str]] = {}
+    vertex: dict[str, list[int]] = {}
+    for key, f in fits.items():
+        name = "/".join(key[:3]) + (f" ({key[4]})" if len(key) > 4 and key[4] else "")
+        if len(f.get("rows") or f.get("pipelines") or []) < 3:
+            continue
+        for variant, g in (("eq. 5.2", f), ("its slowest-pipeline variant", f.get("slowest") or {})):
+            if g.get("tested") is False and (variant == "eq. 5.2" or f.get("tested") is not False):
+                why.setdefault(f"{variant} untested: {g.get('why')}", []).append(f"{name} {key[3]}")
+        if f.get("tested") is not False and f.get("vertex_bound") and key[3] == "throughput":
+            vertex[name] = f["vertex_bound"]
+    lines = [f"{', '.join(names)}: {text}" for text, names in why.items()]
+    return lines + [f"{name}: N = {', '.join(map(str, ns))} Vertex-bound (TThru is the Vertex PM's T_vert0): fitted "
+                    "all the same, though there the pipelines' work shows in nothing" for name, ns in vertex.items()]
+
+
+def vertex_bound(p: dict) -> bool:
+    """Whether a point's TThru is its Vertex PM's T_vert0 (the floor no count of pipelines goes under)."""
+    return p.get("throughput") is not None and p["throughput"] <= p["T_vert0"]
+
+
+def flat_why(by_n: dict[int, dict], target: str, ys: list, xs: list) -> str | None:
+    """Why a fit of three or more N tests nothing (None where it tests eq. 5.2), from the fit's own quantities:
+    ``ys`` are T(N) - T(1), ``xs`` M(N) - M(1) at each N past 1. Where no y differs from 0 (T does not vary with N;
+    every point's TThru its Vertex PM's T_vert0, a small image: h488) B is 0 and meets every point whatever
+    the pipelines do; where no x does, B is not determined (1 taken); two values of N alone test nothing either."""
+    if len(by_n) < 3:
+        return (f"N = {values_text(sorted(by_n))} alone: two points fit eq. 5.2's two parameters, a test of "
+                "nothing (a third N tests it)")
+    if not any(ys):
+        ns, t = values_text(sorted(by_n)), round(by_n[1][target])
+        if all(map(vertex_bound, by_n.values())):
+            return (f"every point's throughput is the Vertex PM's T_vert0 ({round(by_n[1]['T_vert0']):,} cycles) at "
+                    f"every N, N = {ns}: B is untested (the pipelines' work never shows); raise the resolution past "
+                    "the crossover, the sides docs/api.md gives per N")
+        return (f"the simulated {target} is {t:,} cycles at every N, N = {ns}: B = 0 meets every point whatever the "
+                "pipelines do, B is untested")
+    if not any(xs):
+        return ("sum_i max(T_t,i, T_r,i, T_f,i) / N is the same at every N: B is not determined (B = 1 taken), "
+                "the error measures that choice")
     return None

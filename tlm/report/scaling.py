@@ -114,10 +114,35 @@ def untested(fit: dict) -> bool:
     return len({r["pipelines"] for r in fit["rows"]}) <= 2
 
 
-def error_text(fit: dict) -> str:
+def flat(fit: dict) -> bool:
+    """Whether a fit of three or more N tests nothing all the same (``tested`` false: every point Vertex-bound, T
+    the same at every N, or sum_i max / N the same; its ``why`` says which: h488)."""
+    return fit.get("tested") is False and not untested(fit)
+
+
+def judged(fit: dict) -> dict:
+    """A fit of an ``eq52.json`` written before h488 (no ``tested``), judged from its rows as
+    :func:`tlm.experiments.scaling.flat_why` judges a fit's points: untested where the simulated cycles are
+    the same at every N (Vertex-bound where they are T_vert0, times the latency's multiple); else as it is."""
+    rows = fit["rows"]
+    if "tested" in fit or untested(fit) or len({r["simulated"] for r in rows}) > 1:
+        return fit
+    k = 1 if fit["target"] == "throughput" else fit.get("latency_multiple")
+    by_n = {r["pipelines"]: {"throughput": r["simulated"] / k if k else math.inf, fit["target"]: r["simulated"],
+                             "T_vert0": r["T_vert0"] if isinstance(r.get("T_vert0"), (int, float)) else -math.inf}
+            for r in rows}  # (a table without T_vert0: not said to be Vertex-bound)
+    why = eq52.flat_why(by_n, fit["target"], [0] * (len(rows) - 1), [1])
+    slowest = {"slowest": {**fit["slowest"], "tested": False, "why": why}} if "slowest" in fit else {}
+    return {**fit, "tested": False, "why": why, **slowest}
+
+
+def error_text(fit: dict, short: bool = False) -> str:
     """A fit's largest |error| as a caption or a legend shows it, with why it tests nothing where it is
     :func:`untested`: exact by construction where the error is 0, else (the two points leave B or A undetermined,
-    as a slowest pipeline holding all the work at both N does, and B = 1 or A = 0 is taken) no measure either."""
+    as a slowest pipeline holding all the work at both N does, and B = 1 or A = 0 is taken) no measure either;
+    ``untested`` in place of the error where it is :func:`flat` (and its ``why``, unless ``short``)."""
+    if flat(fit):
+        return "untested" if short else f"untested ({fit.get('why')})"
     ns = " and ".join(map(str, sorted({r["pipelines"] for r in fit["rows"]})))
     why = untested_why(fit["max_abs_rel_error"])
     return f"{fit['max_abs_rel_error']:.1%}" + (f" (N = {ns} alone: {why})" if untested(fit) else "")
@@ -152,12 +177,12 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
         ax.plot(ns, [r["simulated"] for r in f["rows"]], color=c, marker=m, linestyle="-",
                 label=f"{name} ({mode}): simulated")
         ax.plot(ns, [r["analytical"] for r in f["rows"]], color=c, linestyle="--",
-                label=f"{name}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {error_text(f)}")
+                label=f"{name}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {error_text(f, True)}")
         if "analytical_slowest" in f["rows"][0]:
             s = f["slowest"]
             ax.plot(ns, [r["analytical_slowest"] for r in f["rows"]], color=c, linestyle=":",
                     label=f"{name}: slowest pipeline, A={s['A']:.3g}, B={s['B']:.3g}, "
-                          f"max err {error_text({**s, 'rows': f['rows']})}")
+                          f"max err {error_text({**s, 'rows': f['rows']}, True)}")
         if target == "throughput":
             axes[2].plot(ns, [r["speedup"] for r in f["rows"]], color=c, marker=m, linestyle="-",
                          label=f"{name} ({mode})")
@@ -199,7 +224,7 @@ def _fits_of_study(study) -> dict[tuple, dict]:
     for f in study.meta.get("fits", []):
         key = eq52.fit_key(f["scene"], f["mode"], f["scheduler"], f["target"], f.get("group") or "")
         if key in rows:
-            fits[key] = {**f, "rows": sorted(rows[key], key=lambda r: r["pipelines"])}
+            fits[key] = judged({**f, "rows": sorted(rows[key], key=lambda r: r["pipelines"])})
     return fits
 
 
@@ -225,6 +250,7 @@ def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None)
                 except InputError as e:
                     notes.append(f"{sweep.label}: {'/'.join(key)}{f' ({group})' if group else ''} {target} "
                                  f"not fitted: {e}")
+    notes.extend(f"{sweep.label}: {line}" for line in eq52.untested_notes(fits))  # (h488: a study's are its own)
     return fits
 
 
@@ -567,7 +593,10 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.extend(f"{label}: {scene_shown}: {line}" for line in below_floor(drawn))
             plot_scaling(scene_shown, drawn, out / file, label)
             worst = ", ".join(f"{k[2]}{f' ({eq52.key_group(k)})' if eq52.key_group(k) else ''} {k[3]} "
-                              f"{error_text(v)}" for k, v in sorted(drawn.items()))
+                              f"{error_text(v, True)}" for k, v in sorted(drawn.items()))
+            whys = dict.fromkeys(v.get("why") for v in drawn.values() if flat(v))
+            if whys:  # (h488: every point Vertex-bound, a 0.0% of no test)
+                worst += f". Untested: {'; '.join(map(str, whys))}"
             if any(untested(v) for v in drawn.values()):  # (two points fit two parameters: a 0.0% that is no test)
                 worst += (". A fit of two values of N tests nothing: eq. 5.2's two parameters, A and B, are "
                           "solved from its two points, which it then meets exactly whatever the model does (where "
