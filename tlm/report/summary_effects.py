@@ -2,7 +2,8 @@
 the factor that moves the frame rate most, like with like, and its fastest point (the best where no slower
 point has a lower image error, else the point of the lowest error beside it: :func:`sweep_findings`); the
 factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
-be compared; the best of points tied in frame rate is the one of least image error where each measured it; and
+be compared; the best of points tied in frame rate is the one of least image error where each measured it, points
+that differ only in factors that change nothing counted and those factors said as "any" (:func:`_span`); and
 per sweep whose points measured their image error, the factor that moves it most (:func:`error_factor`, said
 under "What quality costs"). The k-NN reference's points (``estimate.filter: knn`` in photon-map mode) are
 ranked by frame rate nowhere, their search not modelled (:func:`_ranked_points`, as the error-vs-cost report);
@@ -199,38 +200,81 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     """The point of the highest frame rate in words; where points that differ in more than the
     factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
     the least image error where each of them measured it (the text says so), else each of them
-    (those of the least error, tied), in sweep order (the first of those that differ only in
-    ``inert``; at most :data:`MAX_TIED_POINTS` named, the rest counted). It is "the best point" where
+    (those of the least error, tied), in sweep order (at most :data:`MAX_TIED_POINTS` named, the rest
+    counted). Points that differ only in ``inert`` are not told apart but counted: "9 points tie as the best
+    at 411 FPS: bsp.levels = 7, any arch.fifo_depth", the factors that vary among them said as
+    :func:`_span` says them. It is "the best point" where
     no point measured its image error or it has the lowest error of all (said so where not said as
     the least of the tied); else "the fastest point", with its error, and the point of the lowest
     error after it (:func:`_lowest`): a faster point of a larger error is not the best of all. ``of`` follows
     "the lowest image error" (`` of the points ranked``: the k-NN reference's left out, :func:`_ranked_points`)."""
     top = max(r["fps"] for r in rows)
-    best = {}
-    for r in rows:
-        if same_value(r["fps"], top):
-            best.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
+    at_top = [r for r in rows if same_value(r["fps"], top)]
+    best = _grouped(at_top, factors, inert)
     tied, least = len(best), ""
-    if tied > 1 and len(_measured(list(best.values()))) == tied:  # (the least error of the tied decides)
-        low = min(float(r[ERROR]) for r in best.values())
-        best = {key: r for key, r in best.items() if same_value(float(r[ERROR]), low)}
-        least = f"the least image error (relative MSE {low:.3g}) of the {tied} points tied at that frame rate"
+    if tied > 1 and len(_measured([g[0] for g in best.values()])) == tied:  # (the least error of the tied decides)
+        low = min(float(g[0][ERROR]) for g in best.values())
+        best = {key: g for key, g in best.items() if same_value(float(g[0][ERROR]), low)}
+        least = f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points tied at that frame rate"
+    firsts = [g[0] for g in best.values()]
     errs = [float(r[ERROR]) for r in _measured(rows)]
     lowest = min(errs) if errs else None
     fastest = lowest is not None and not all(_number(r.get(ERROR)) and same_value(float(r[ERROR]), lowest)
-                                             for r in best.values())
+                                             for r in firsts)
     word = "fastest" if fastest else "best"
-    where = [_where(r, factors) for r in best.values()]
-    if len(where) == 1:
-        (r,) = best.values()
-        own = ("" if least or not _number(r.get(ERROR)) else
-               f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
-               f", with the lowest image error{of} (relative MSE {lowest:.3g})" if lowest is not None else "")
+    where = [_where(r, factors) for r in firsts]
+    r = firsts[0]
+    own = ("" if least or len(firsts) > 1 or not _number(r.get(ERROR)) else
+           f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
+           f", with the lowest image error{of} (relative MSE {lowest:.3g})" if lowest is not None else "")
+    if sum(map(len, best.values())) > len(best):  # (points that differ only in factors that change nothing: counted)
+        text = (f"{sum(map(len, best.values()))} points tie as the {word} at {top:.3g} FPS{own}"
+                f"{', ' + least if least else ''}: {_said(list(best.values()), rows, factors)}")
+    elif len(where) == 1:
         text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
     else:
         text = (f"the {word} points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
                 f"are {_named(where, factors)}")
     return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
+
+
+def _grouped(points: list[dict], factors: list[str], inert: list[str]) -> dict[tuple, list[dict]]:
+    """The ``points`` by their values of the factors not ``inert`` (those that change nothing), in sweep order."""
+    out: dict[tuple, list[dict]] = {}
+    for r in points:
+        out.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), []).append(r)
+    return out
+
+
+def _span(points: list[dict], rows: list[dict], factors: list[str]) -> tuple[str, bool]:
+    """``points`` said at once (not escaped): a factor of one value among them ``k = v``, one that takes among
+    them each value it takes among ``rows`` ``any k``, else its values among them ``k = 1 or 4`` (in the order
+    they first come in ``rows``); and whether the points hold every combination of those values (a ``zip:``'s
+    factors, which move together, or a point that failed: they do not, and the words would say more)."""
+    parts, combos = [], 1
+    for k in factors:
+        seen = dict.fromkeys(repr(r.get(k)) for r in points)
+        every = list(dict.fromkeys(repr(r.get(k)) for r in rows))
+        combos *= len(seen)
+        if len(seen) == 1:
+            parts.append(f"{k} = {_as_yaml(k, next(iter(seen)))}")
+        elif set(seen) >= set(every):
+            parts.append(f"any {k}")
+        else:
+            parts.append(f"{k} = {listing([_as_yaml(k, v) for v in every if v in seen], last='or')}")
+    return ", ".join(parts), combos == len({tuple(repr(r.get(k)) for k in factors) for r in points})
+
+
+def _said(groups: list[list[dict]], rows: list[dict], factors: list[str], after: list[str] | None = None) -> str:
+    """Tied points, each of the ``groups`` points that differ only in factors that change nothing, in words,
+    escaped: where they hold every combination of their values, or are one group, and have no ``after``, at once
+    (:func:`_span`: ``a = 1, any b``; one group not of every combination says so); else each group (its points
+    counted) and its ``after``, as :func:`_named` names them."""
+    whole, every = _span([r for g in groups for r in g], rows, factors)
+    if (every or len(groups) == 1) and after is None:  # (a point failed, a zip: the words would say more, said so)
+        return esc(whole) + ("" if every else " (not every combination of these)")
+    said = [(f"{len(g)} points: " if len(g) > 1 else "") + _span(g, rows, factors)[0] for g in groups]
+    return _named(said, factors, after)
 
 
 KNN_APART = "the k-NN reference's frame rate is not ranked, its search not modelled"
@@ -294,17 +338,22 @@ def _named(where: list[str], factors: list[str], after: list[str] | None = None)
 
 def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, of: str = "") -> str:
     """The point of the lowest image error ``low`` among ``rows`` and its frame rate, in words; those
-    that tie (to 1e-9), each, as :func:`_best_points` names the tied (not escaped twice)."""
-    points: dict[tuple, dict] = {}
-    for r in _measured(rows):
-        if same_value(float(r[ERROR]), low):
-            points.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
-    if len(points) == 1:
-        (r,) = points.values()
+    that tie (to 1e-9), each, as :func:`_best_points` names the tied (not escaped twice), points that differ only
+    in the factors ``inert`` counted (:func:`_said`)."""
+    points = _grouped([r for r in _measured(rows) if same_value(float(r[ERROR]), low)], factors, inert)
+    n = sum(map(len, points.values()))
+    if n == 1:
+        r = next(iter(points.values()))[0]
         return f"the point of the lowest image error{of} (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
                f"{r['fps']:.3g} FPS"
-    fps = [f" at {r['fps']:.3g} FPS" for r in points.values()]
-    named = _named([_where(r, factors) for r in points.values()], factors, fps)
+    fps = [f" at {g[0]['fps']:.3g} FPS" for g in points.values()]
+    if n > len(points):  # (points that differ only in factors that change nothing: counted, said at once where one can)
+        whole, every = _span([r for g in points.values() for r in g], rows, factors)
+        if every and len(set(fps)) == 1:
+            return f"{n} points tie at the lowest image error{of} (relative MSE {low:.3g}),{fps[0]}: {esc(whole)}"
+        return (f"{n} points tie at the lowest image error{of} (relative MSE {low:.3g}): "
+                f"{_said(list(points.values()), rows, factors, fps)}")
+    named = _named([_where(g[0], factors) for g in points.values()], factors, fps)
     return f"the points of the lowest image error{of} (relative MSE {low:.3g}), tied, are {named}"
 
 

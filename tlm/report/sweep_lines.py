@@ -4,12 +4,14 @@ side (:func:`dodge`), the legend under a figure, its labels wrapped to the figur
 (:func:`legend_under`), and the points of a factor of numbers whose value is null (``bsp.levels:
 [null, 6, 8]``, null the thesis's depth) drawn apart on its axis of numbers: at the value they
 resolved to where their results folder records it, else at a tick ``null`` beside the numbers
-(:func:`null_points`, :func:`draw_nulls`). A factor's values are ordered and compared as
+(:func:`null_points`, :func:`draw_nulls`); a factor of numbers' axis, log from 8x, of base 2 over powers of
+two, ticked at its values (:func:`factor_axis`). A factor's values are ordered and compared as
 :func:`order_key` and :func:`hashable` make them.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import textwrap
 from collections import defaultdict
@@ -17,10 +19,11 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator, NullLocator
 
 from tlm.report.collect import Sweep
-from tlm.report.common import line_style
-from tlm.report.names import null_meaning
+from tlm.report.common import line_style, log_ticks
+from tlm.report.names import null_meaning, value_text
 
 LEVELS = "bsp.levels"
 LEGEND_FONT = 7  # points
@@ -234,6 +237,40 @@ def draw_nulls(ax, factor: str, nulled: list[tuple[tuple, Any, float]], index: d
                  f"no {what} it resolved to: {'hollow stars' if many else 'a hollow star'} at \"null\", left of the "
                  "numbers and off their scale.")
     return text
+
+
+LOG_SPAN = 8  # a factor of positive numbers whose largest is this many times its smallest or more: a log axis
+VALUE_TICKS = 12  # the most values of a factor of numbers ticked each (more: a locator's ticks)
+TICK_ROOM = 1 / 15  # the least gap between two values ticked each, of the axis's span (of their logs on a log axis)
+
+
+def factor_axis(ax, factor: str, xs: list) -> bool:
+    """The x axis of a factor of numbers whose points lie at ``xs`` (its values, and those its null points
+    resolved to): log where each is positive and the largest is :data:`LOG_SPAN` times the smallest or more
+    (``arch.pipelines`` 1 to 64: N = 1, 2 and 4 not crammed together at the left), of base 2 where each is a
+    whole power of two, else of base 10; a log axis ticked at the values, as :func:`~tlm.report.names.value_text`
+    writes them, where they are at most :data:`VALUE_TICKS` and no two are closer than :data:`TICK_ROOM` of the
+    axis (its minor ticks then left out), else as :func:`~tlm.report.common.log_ticks` ticks it (base 10); a
+    linear axis of whole numbers ticked in whole numbers, one value alone too (``bsp.levels [null, 7]``: 7, not
+    6.64 to 7.36). Returns whether it is log."""
+    given = {float(x): x for x in sorted(xs, key=float)}
+    vals = list(given)
+    lo, hi = vals[0], vals[-1]
+    log = lo > 0 and hi / lo >= LOG_SPAN
+    whole = all(v.is_integer() for v in vals)
+    two = log and whole and all(math.log2(v).is_integer() for v in vals)
+    if log:
+        ax.set_xscale("log", base=2 if two else 10)
+    at = [math.log(v) for v in vals] if log else []
+    room = all(b - a >= TICK_ROOM * (at[-1] - at[0]) for a, b in itertools.pairwise(at))
+    if log and len(vals) <= VALUE_TICKS and room:
+        ax.set_xticks(vals, [value_text(factor, given[v]) for v in vals])
+        ax.xaxis.set_minor_locator(NullLocator())
+    elif log and not two:
+        log_ticks(ax, "x")
+    elif whole and not log:  # (an integer factor: no 5.5 levels; one value alone ticked, not 6.64 to 7.36)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+    return log
 
 
 def dodge(i: int, n: int) -> float:

@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from tlm.config_words import listing
 from tlm.kernels.bsp import default_levels
@@ -64,6 +64,7 @@ from tlm.report.sweep_lines import (
     column_texts,
     dodge,
     draw_nulls,
+    factor_axis,
     hashable,
     legend_under,
     merge_groups,
@@ -301,11 +302,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
         nulled = null_points(sw, factor, nulls, others)
         xs = [*values, *(x for _, x, _ in nulled if x is not None)]
         lo_v, hi_v = min(xs), max(xs)
-        log = lo_v > 0 and hi_v / lo_v >= 100
-        if log:
-            ax.set_xscale("log")
-        elif all(float(v).is_integer() for v in xs):  # (an integer factor: no 5.5 levels)
-            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        log = factor_axis(ax, factor, xs)  # (log from 8x, base 2 over powers of two; ticked at the values where few)
         if nulled:
             index = {} if merged is None else {c: i for i, (cs, _) in enumerate(merged) for c in cs}
             null_text = draw_nulls(ax, factor, nulled, index, lines is None, (lo_v, hi_v), log)
