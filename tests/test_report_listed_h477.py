@@ -58,9 +58,10 @@ def test_a_kept_radiance_folder_is_said_to_be_not_the_run_s(tmp_path, cache):
     panels = run_panels(read([out]).runs[0])
     assert [p.image is None for p in panels] == [True, True, False, True]
     assert panels[2].image.shape == (12, 12, 3)
-    assert "not in the run's .tlm-written" in panels[0].remark and "radiance is there" in panels[0].remark
+    assert panels[0].remark.startswith("cannot rebuild: the run wrote no radiance/ (radiance/ is there, but not in "
+                                       "the run's .tlm-written")  # (h486: not "the run folder has no radiance/")
     page = build_report([out]).read_text(encoding="utf-8")
-    assert "radiance is there, but not in the run&#x27;s .tlm-written" in page
+    assert "radiance/ is there, but not in the run&#x27;s .tlm-written" in page
 
 
 def test_a_kept_trace_is_not_drawn(tmp_path, cache):
@@ -143,4 +144,4 @@ def test_a_thesis_cell_kept_by_a_rerun_is_left_out(tmp_path, cache):
     assert (out / "cornell" / "reflect" / "results.json").is_file()
     inputs = read([out])
     assert [r.label for r in inputs.runs] == ["cornell/rcast"]
-    assert any(n.startswith(f"{out / 'cornell' / 'reflect'}: a thesis cell the study") for n in inputs.notes)
+    assert any(n.startswith(f"{out / 'cornell' / 'reflect'}: a thesis cell that the study") for n in inputs.notes)

@@ -18,8 +18,8 @@ extreme            ``tlm extreme``                             ``extreme.jsonl``
 =================  ==========================================  ================================
 
 Every run folder found (a run, a thesis cell ``<scene>/<mode>``, a sweep point) becomes
-a :class:`Run`; the study tables are kept as rows. A run's files, and a thesis study's cells, are read where
-its ``.tlm-written`` lists them alone, where it has one (:mod:`tlm.report.written`: not a rerun's kept ones).
+a :class:`Run`; the study tables are kept as rows. A run's files, and a study's cells (a thesis's, an extreme's
+cases), are read where its ``.tlm-written`` lists them, where it has one (:mod:`tlm.report.written`: not kept ones).
 
 A file the sections read is checked here for what they need of it (its columns or keys,
 numbers where they compute): a damaged one, empty, cut off (a study's tables are written
@@ -519,7 +519,7 @@ def read(dirs: list[Path], skip: Path | None = None, reads: Reads | None = None)
         k = kind_of(d)
         said: list[str] = []
         named: list[int] = []  # (how many folders each line of ``said`` names: a line of "and 12 more ...", 12)
-        found = [(d, k)] if k is not None else find(d, skip, said, named)
+        found = [(d, k)] if k is not None else written.own_runs(find(d, skip, said, named), said, named)
         if not found:  # (and what the search passed over: a link not followed, a folder it could not list)
             # (one line: three folders and how many more *folders*, not lines, never "and 1 more" (listing's rule,
             # whose ", " does not fit: "; " between, as a line has commas; and a line may name many folders))

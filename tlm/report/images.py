@@ -114,8 +114,9 @@ def cell_panel(run: Run, mode: str) -> Panel:
     _, left = _plan(run)
     png = run.wrote("images/composite.png")  # (a file the cell wrote: its listing's)
     if png is None:
-        return Panel(mode, remark=f"no image: {run.label} has no images/composite.png"
-                     f"{kept(run, 'images/composite.png')}")
+        other = kept(run, "images/composite.png")  # (one there that is not the cell's: "wrote no", not "has no")
+        return Panel(mode, remark=f"no image: {run.label} {'wrote' if other else 'has'} no images/composite.png"
+                     f"{other}")
     remark = f"{mode} pass left out: {left[mode]} (image = previous mode's)" if mode in left else ""
     return Panel(mode, _read_png(png), remark)
 
@@ -157,16 +158,18 @@ def run_panels(run: Run) -> list[Panel]:
             if composite is not None:
                 panels.append(Panel(mode, _read_png(composite)))
             else:
-                panels.append(Panel(mode, remark="cannot rebuild: the run folder has no radiance/"
-                                    + kept(run, "radiance")))
+                other = kept(run, "radiance")
+                panels.append(Panel(mode, remark=f"cannot rebuild: the run {'wrote' if other else 'folder has'} no "
+                                    f"radiance/{other}"))
             continue
         name = PASSES[i]
         remark = ""
         if name in ran:
             path = run.wrote(f"radiance/{name}.npy")  # (one the run wrote: not an earlier run's, kept by a rerun)
             if path is None:
-                panels.append(Panel(mode, remark=f"no radiance/{name}.npy in the run folder"
-                                    + kept(run, f"radiance/{name}.npy")))
+                other = kept(run, f"radiance/{name}.npy")
+                panels.append(Panel(mode, remark=f"the run wrote no radiance/{name}.npy{other}" if other else
+                                    f"no radiance/{name}.npy in the run folder"))
                 total = None
                 continue
             rad = np.load(path).astype(np.float64)
@@ -334,8 +337,9 @@ def images_section(inputs: Inputs, out: Path) -> Section:
     with_images = []
     for run in runs:
         if run.images is None and run.radiance is None:
-            section.notes.append(f"{run.label}: the run folder has no images/ or radiance/"
-                                 f"{kept(run, 'images')}{kept(run, 'radiance')}, left out")
+            other = kept(run, "images") + kept(run, "radiance")
+            section.notes.append(f"{run.label}: the run {'wrote' if other else 'folder has'} no images/ or radiance/"
+                                 f"{other}, left out")
         else:
             with_images.append(run)
     for k in range(0, len(with_images), MAX_ROWS):

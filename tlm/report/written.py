@@ -7,9 +7,10 @@ file the user edited since, and, where the folder had no listing, whole folders 
 as absent (h477: an earlier 16x16 run's ``radiance/rcast.npy`` rebuilt the image panels of a 24x24 rerun that
 wrote no radiance, with no sign of it). :func:`wrote` is the one test of the report's reads of a run's files
 (:meth:`tlm.report.collect.Run.wrote`), :func:`kept` what the report then says of such a file, and
-:func:`study_cells` the same test of a thesis study's cells by the study's own listing. A folder with no listing
-(a tlm's older than listings) is read as it is. Only membership counts: a listed file the user edited in place
-is read as it is now.
+:func:`study_cells` the same test of a thesis study's cells by the study's own listing, and :func:`own_runs` of the
+run folders a search under a folder finds (``tlm report T/cornell``, ``tlm report X/cases``: a thesis cell or an
+extreme case, each a run folder of its own, h486). A folder with no listing (a tlm's older than listings) is read
+as it is. Only membership counts: a listed file the user edited in place is read as it is now.
 """
 
 from __future__ import annotations
@@ -44,13 +45,13 @@ def kept(run: Any, rel: str) -> str:
     names = names_of(run)
     if names is None or rel in names or not (run.path / rel).exists():
         return ""
-    return (f" ({rel} is there, but not in the run's {LISTING}: kept by a rerun from an earlier output or the user, "
-            "not this run's, so not read)")
+    shown = f"{rel}/" if (run.path / rel).is_dir() else rel  # (a folder as the report names one: radiance/)
+    return f" ({shown} is there, but not in the run's {LISTING}: an earlier output's, kept by a rerun, or the user's)"
 
 
 def study_cells(folder: Path) -> tuple[list[Path], list[str]]:
     """A thesis study's cells (``folder/<scene>/<mode>``, those with a ``results.json``) that the study wrote, and
-    a note on each one there that its listing does not name (kept by a rerun into the folder: not read); every
+    a note on each one there that its listing does not name (:func:`left_out`: kept by a rerun, not read); every
     one for a study folder with no listing."""
     names = listed(folder)
     cells, notes = [], []
@@ -60,6 +61,36 @@ def study_cells(folder: Path) -> tuple[list[Path], list[str]]:
         if names is None or rel in names:
             cells.append(cell)
         else:
-            notes.append(f"{cell}: a thesis cell the study {folder} did not write (not in its {LISTING}: kept by a "
-                         "rerun into the folder from an earlier study), left out of this report")
+            notes.append(left_out(cell, "a thesis cell", folder))
     return cells, notes
+
+
+def left_out(folder: Path, what: str, study: Path) -> str:
+    """The note on the run ``folder`` (``what`` it is: "a thesis cell") that ``study``'s listing does not name."""
+    return (f"{folder}: {what} that the study {study} did not write (not in its {LISTING}: an earlier study's, kept "
+            "by a rerun, or the user's), left out of this report")
+
+
+def own_runs(found: list[tuple[Path, str]], said: list[str], named: list[int]) -> list[tuple[Path, str]]:
+    """The folders a search found (:func:`tlm.report.folders.find`: each with its kind) but each run folder that
+    lies where a study puts its runs (a thesis cell ``<study>/<scene>/<mode>``, an extreme case
+    ``<study>/cases/<name>``) and that the study's listing does not name: not its own, as :func:`study_cells`
+    leaves one out of a study read whole (h486: ``tlm report T/cornell`` drew a cell that a rerun of the study kept,
+    and put it in Table III). ``said`` gets a line on each one left out, ``named`` a 1 each (the search's notes and
+    their counts). A study with no listing names every one; a run folder given itself is never searched for."""
+    from tlm.config import MODES
+    from tlm.report.folders import kind_of
+
+    own, kinds = [], {}  # (each study's kind, looked for once: a search may find thousands of run folders)
+    for folder, kind in found:
+        study = folder.parent.parent
+        of = (kinds[study] if study in kinds else kinds.setdefault(study, kind_of(study))) if kind == "run" else None
+        what = ("a thesis cell" if of == "thesis" and folder.name in MODES else
+                "an extreme case" if of == "extreme" and folder.parent.name == "cases" else None)
+        names = listed(study) if what is not None else None
+        if names is not None and f"{folder.parent.name}/{folder.name}/results.json" not in names:
+            said.append(left_out(folder, what, study))
+            named.append(1)
+        else:
+            own.append((folder, kind))
+    return own
