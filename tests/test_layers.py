@@ -36,7 +36,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.arch",),
     ("tlm.experiments",
      "tlm.experiments.reference_resume",  # (h454: an interrupted reference resumed, out of reference)
-     "tlm.experiments.error_cost_blur"),  # (h483: error-vs-cost's blur warning, once per study, out of error_cost)
+     "tlm.experiments.error_cost_blur",  # (h483: error-vs-cost's blur warning, once per study, out of error_cost)
+     "tlm.experiments.sweep_folder"),  # (h489: what a sweep finds in its folder from before it, out of sweep)
     ("tlm.report",
      "tlm.report.written"),  # (h477: which files of a run folder its run wrote, the report's only reads)
     # tlm: the package's __init__, which re-exports tlm.api

@@ -42,7 +42,7 @@ def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> 
     if getattr(args, "no_report", False):
         return
     folder = out / "report"
-    begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's folder keeps its last)
+    begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's of its rows, kept)
     try:
         with report_claimed(folder, wait=lambda holder: say_err(
                 f"note: another report is writing into {quoted(folder)} ({holder}): the report of {kept} in {out} "

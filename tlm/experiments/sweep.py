@@ -46,6 +46,8 @@ already done, and recomputes those whose inputs changed. Output folder::
     workers.json             a Dask sweep's events on its workers: one left out, why, its points sent again
                              and where they ran (only where one happened: sweep_rows.keep_worker_events),
                              of each run of the sweep into the folder (a sweep of other points removes it)
+    report/                  tlm sweep's report, after its points: an earlier one goes as a sweep claims the folder,
+                             but where it is of the rows the sweep leaves (sweep_folder.drop_report)
 
 A point renders nothing that another point rendered: points that differ only in
 ``arch`` (or in settings their mode never reads: ``photons.count`` in mode rcast) share one
@@ -108,6 +110,7 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.run_warnings import sweep_jobs_line
 from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
+from tlm.experiments.sweep_folder import drop_report, earlier_sweep, other_folders, other_folders_line
 from tlm.experiments.sweep_point import (
     MARKER,
     Task,
@@ -174,24 +177,6 @@ def _clean_stale(points_dir: Path) -> None:
     temporary files of the rows (sweep.csv, sweep.jsonl) such a sweep left beside them."""
     storage.clean_stale(points_dir)
     storage.clean_stale_files(points_dir.parent)
-
-
-def other_folders(points_dir: Path, hashes) -> int:
-    """The folders in ``points_dir`` that are none of ``hashes`` (this sweep's points): those an
-    earlier run into the folder left, of other tlm code, another config or a different ``--set``
-    (a point's hash holds the code's fingerprint, its resolved config, the ``--set`` values
-    included, and its input files' content). One listing, names
-    only; a writer's hidden temporary folders are not counted."""
-    return sum(not n.startswith(".") and n not in hashes for n in listed(points_dir))
-
-
-def other_folders_line(n: int, points_dir: Path) -> str:
-    """The line that says what ``n`` folders of :func:`other_folders` are."""
-    its = "them" if n != 1 else "it"
-    return (f"{n} point folder{'s' if n != 1 else ''} in {points_dir} {'are' if n != 1 else 'is'} not this "
-            "sweep's: left by an earlier run into the folder of other tlm code, another config or a different "
-            "--set (an edit under tlm/ or to an input file changes every point's hash); nothing reads "
-            f"{its}, and removing {its} changes no result (sweep.yaml lists this sweep's hashes)")
 
 
 def _inputs(config: dict, folder: Path, source: str) -> tuple[str, ...]:
@@ -268,6 +253,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     sweep = load_sweep(Path(path), overrides, check)  # loads every distinct programs table and scene
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written or said: a bad --out is its one line
+    earlier = earlier_sweep(out)  # (the folder's sweep.yaml before this sweep's: what its stale points' line names)
     said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)
     said += [] if remote else threads_line(sweep.points, str(sweep.path))  # (its points cached or not)
     for line in said if warn is not None else ():
@@ -338,6 +324,11 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 rows_due = True
                 if not made:
                     storage.write_file(out / MARKER, marker)
+                # (an earlier report, not of the rows from now on, as tlm run's goes; one of them kept)
+                gone = drop_report(out, current=not todo and earlier is not None and earlier.text == marker)
+                said += [gone] if gone else []
+                for line in [gone] if gone and warn is not None else ():
+                    warn(line)
                 points_dir.mkdir(parents=True, exist_ok=True)
                 forget_worker_events(out, sweep.identity())  # (those of another sweep into the folder before)
                 _clean_stale(points_dir)
@@ -402,7 +393,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         # machine, as its points said it)
         machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
         other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
-        stale = [other_folders_line(other, points_dir)] if other else []
+        stale = [other_folders_line(other, points_dir, earlier, sweep, provenance["code_fingerprint"])] if other else []
         if warn is not None:
             for line in [*machines, *unread, *caches, *stale]:
                 if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)

@@ -184,7 +184,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     ``render.threads`` past them (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`)."""
     from tlm.experiments.frames import is_cached
     from tlm.experiments.run_warnings import sweep_jobs_line, sweep_threads_line
-    from tlm.experiments.sweep import other_folders, other_folders_line
+    from tlm.experiments.sweep_folder import earlier_sweep, other_folders, other_folders_line
 
     out = Path(out)
     points_dir = out / "points"
@@ -212,7 +212,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     cached = sum(is_cached(k) for k in frames)
     other = other_folders(points_dir, by_hash)
     if other:
-        warnings.append(other_folders_line(other, points_dir))
+        warnings.append(other_folders_line(other, points_dir, earlier_sweep(out), sweep))  # (what changed since)
     count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)
     return SweepPlan(sweep.path, out, len(sweep.points), count(set(by_hash) - run), count(run),
                      count(again or ()), len(frames), cached, replaced, _stale(out), other, references,
