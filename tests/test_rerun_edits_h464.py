@@ -111,7 +111,7 @@ def test_a_folder_whose_listing_was_deleted_keeps_what_the_new_output_does_not_w
     assert line.endswith(f"{out} has no {LISTING} (deleted, or written by a tlm older than it), which tells tlm's "
                          "files from yours: 'aov', 'images/b.png', 'images/mine.png' and 'images/notes', which this "
                          "output does not write, were kept as yours (remove any an earlier output wrote: it is not "
-                         "this output's; a run's report leaves out what the run's listing does not name)")
+                         "this output's; a report leaves out what the output's listing does not name)")
     # the new output's listing: what it kept is the user's from then on, as any file the user put there
     _output(out, {"m": "3", "images/a.png": "3"})
     assert _files(out)["aov/w.npz"] == "1" and not _warnings(capsys.readouterr().err)

@@ -84,4 +84,4 @@ def test_a_folder_with_no_listing_keeps_one_the_new_output_does_not_write_whole_
     assert len(_files(out)) == 203
     (line,) = [x for x in capsys.readouterr().err.splitlines() if "warning" in x]
     assert "yours: 'images/b.png' and 'radiance', which this output does not write, were kept as yours" in line
-    assert "it is not this output's; a run's report leaves out what the run's listing does not name" in line
+    assert "it is not this output's; a report leaves out what the output's listing does not name" in line

@@ -15,7 +15,7 @@ before sizes and times were listed) tells no edited file, and an owned file at t
 not, as it was. An old folder with no listing (deleted; a tlm's older than listings) tells nothing of
 its folders: what the new output writes there is the output's, unsaid; the rest of them is kept (a folder the
 new output does not write at all, whole), and a warning names it (:func:`unlisted_line`: some may be an earlier
-output's, such as the AOVs of a run that wrote them, for the user to remove, which a run's report leaves out as
+output's, such as the AOVs of a run that wrote them, for the user to remove, which a report leaves out as
 not listed, :mod:`tlm.report.written`; none is removed as one); an owned file at the top is the output's.
 
 The listing decides membership only: the paths moved are those of the folder's own entries (``os.listdir``),
@@ -239,4 +239,4 @@ def unlisted_line(out: Path, kept: list[str]) -> str:
     return (f"{out} has no {LISTING} (deleted, or written by a tlm older than it), which tells tlm's files from "
             f"yours: {listing(map(quoted, kept), named=SHOWN)}, which this output does not write, "
             f"{'was' if len(kept) == 1 else 'were'} kept as yours (remove any an earlier output wrote: it is not "
-            f"this output's; a run's report leaves out what the run's listing does not name)")
+            f"this output's; a report leaves out what the output's listing does not name)")
