@@ -50,7 +50,8 @@ for a steady state (``throughput_steady`` false: its TThru includes the fill and
 which is fitted all the same. :func:`analyse` writes ``eq52.csv`` (per point:
 simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
 largest error, per group; ``tested`` false and ``why`` where a fit tests nothing, :func:`flat_why`: every point
-Vertex-bound at every N, h488; ``vertex_bound``, the N whose TThru is T_vert0; ``fitted_from``: per sweep
+Vertex-bound at every N, h488; a ``why`` with ``tested`` true where B alone is not determined, h493;
+``vertex_bound``, the N whose TThru is T_vert0; ``fitted_from``: per sweep
 folder, the hashes of the points its ``sweep.yaml`` listed and of those fitted, which :func:`out_of_date` compares with
 the folder as it is later), ``provenance.json`` and one figure per scene
 (``scaling_<scene>.png``, :func:`figure_files`: two scenes whose names give one file name get
@@ -429,7 +430,9 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     worst = max(abs(r["rel_error"]) for r in rows)
     why = flat_why(by_n, target, [y for _, y in xs], [x for x, _ in xs])
     vertex = [n for n in sorted(by_n) if vertex_bound(by_n[n])]
-    return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows, "tested": why is None,
+    # (B undetermined alone, the cycles varying: eq. 5.2 predicts T(1) at every N whatever B, a test, h493)
+    tested = why is None or (len(by_n) > 2 and any(y for _, y in xs))
+    return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows, "tested": tested,
             **({"why": why} if why else {}), **({"vertex_bound": vertex} if vertex else {})}
 
 

@@ -98,6 +98,8 @@ def untested_notes(fits: dict[tuple, dict]) -> list[str]:
         for variant, g in (("eq. 5.2", f), ("its slowest-pipeline variant", f.get("slowest") or {})):
             if g.get("tested") is False and (variant == "eq. 5.2" or f.get("tested") is not False):
                 why.setdefault(f"{variant} untested: {g.get('why')}", []).append(f"{name} {key[3]}")
+            elif g.get("tested") and g.get("why"):  # (B not determined, its error a test all the same: h493)
+                why.setdefault(f"{variant}: {g['why']}", []).append(f"{name} {key[3]}")
         if f.get("tested") is not False and f.get("vertex_bound") and key[3] == "throughput":
             vertex[name] = f["vertex_bound"]
     lines = [f"{', '.join(names)}: {text}" for text, names in why.items()]
@@ -126,7 +128,8 @@ def flat_why(by_n: dict[int, dict], target: str, ys: list, xs: list) -> str | No
                     "the crossover, the sides docs/api.md gives per N")
         return (f"the simulated {target} is {t:,} cycles at every N, N = {ns}: B = 0 meets every point whatever the "
                 "pipelines do, B is untested")
-    if not any(xs):
+    if not any(xs):  # (a test all the same, h493: the fit's ``tested`` stays true, its error shown)
         return ("sum_i max(T_t,i, T_r,i, T_f,i) / N is the same at every N: B is not determined (B = 1 taken), "
-                "the error measures that choice")
+                "and whatever B is eq. 5.2 predicts the same cycles at every N, those at N = 1: the error measures "
+                "that prediction")
     return None

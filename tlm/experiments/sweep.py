@@ -110,7 +110,7 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.run_warnings import sweep_jobs_line
 from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
-from tlm.experiments.sweep_folder import drop_report, earlier_sweep, other_folders, other_folders_line
+from tlm.experiments.sweep_folder import drop_report, earlier_sweep, other_folders, other_folders_line, rows_dated
 from tlm.experiments.sweep_point import (
     MARKER,
     Task,
@@ -545,7 +545,7 @@ def _keep_workers(out: Path, pool, records: dict[str, dict], sweep: str) -> None
 def _write_rows(out: Path, rows: list[dict], sweep) -> None:
     """The ``sweep``'s rows (:func:`~tlm.experiments.sweep_rows.write_rows`, under the rows' lock, another run's of
     its points kept: h471); with no row, which would name them, its factors name the CSV's factor columns."""
-    with _kept.rows_held(out):
+    with _kept.rows_held(out), rows_dated(out):  # (rows unchanged: their time too, h493)
         rows = [*rows, *_kept.others_rows(out, rows, {p.hash: p.index for p in sweep.points})]
         write_rows(out, rows) if rows else write_rows(out, rows, sweep.factors)
 

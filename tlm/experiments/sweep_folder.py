@@ -13,6 +13,8 @@ import os
 import re
 import shutil
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -67,6 +69,24 @@ def _after_rows(out: Path, report: Path) -> bool:
         return os.stat(report / REPORT_PAGE).st_mtime_ns >= os.stat(out / "sweep.jsonl").st_mtime_ns
     except OSError:
         return False
+
+
+@contextmanager
+def rows_dated(out: Path) -> Iterator[None]:
+    """Around a rewrite of the rows of the sweep in ``out``: where ``sweep.jsonl`` then holds the very bytes it held
+    before (a rerun with no point to run), its time is set back to when they were first written, so a report of
+    them stays newer than the rows (:func:`_after_rows`): without it, the second rerun of an unchanged sweep with
+    ``--no-report`` removed the report the first kept (h493)."""
+    rows = out / "sweep.jsonl"
+    try:  # (read only where a report is there to be kept)
+        before, st = (rows.read_bytes(), os.stat(rows)) if _report_there(out / REPORT) else (None, None)
+    except OSError:
+        before = st = None
+    yield
+    if st is not None:
+        with suppress(OSError):
+            if rows.read_bytes() == before:
+                os.utime(rows, ns=(st.st_atime_ns, st.st_mtime_ns))
 
 
 def _report_there(report: Path) -> bool:
