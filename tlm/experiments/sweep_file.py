@@ -116,14 +116,19 @@ class Sweep:
         """A warning line per factor that changes nothing in any point
         (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
         filter, ``photons.count`` in mode rcast; ``render.exposure``, as a sweep writes no image:
-        :data:`~tlm.experiments.sweep_checks.NO_IMAGE`): its points would be the same run. Then one per value of a
+        :data:`~tlm.experiments.sweep_checks.NO_IMAGE`; a section's factor by the keys its values set, ``render:
+        [{exposure: 1}, {exposure: 2}]``): its points would be the same run. Then one per value of a
         factor that sets nothing (a section's mapping that names no key, ``grid: {render: [{}, ...]}``, which
         merges into the base's section: :func:`_keys_given`; null gives the section at its defaults)."""
         lines = []
         for factor in self.factors:
-            whys = {i.get(factor, _NO_IMAGE.get(factor)) for i in self.inert}  # (and the exposure: no image)
-            if self.inert and None not in whys:
-                lines.append(f"{self.path}: the factor {factor} changes nothing in any point: {said_once(whys)}")
+            # (a section's factor, grid: {render: [{exposure: 1}, {exposure: 2}]}: the keys its values set, each)
+            keys = _keys_given(factor, {**self.grid, **self.zip}[factor])
+            whys = {i.get(k, _NO_IMAGE.get(k)) for i in self.inert for k in keys}  # (and the exposure: no image)
+            if self.inert and keys and None not in whys:
+                named_keys = "" if keys == [factor] else f" ({', '.join(keys)})"
+                lines.append(f"{self.path}: the factor {factor}{named_keys} changes nothing in any point: "
+                             f"{said_once(whys)}")
         for where, section in (("grid", self.grid), ("zip", self.zip)):
             for key, values in section.items():
                 base = f"its points have the base's {key}"

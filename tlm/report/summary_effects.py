@@ -199,11 +199,11 @@ def _values(tied: list[str], of: int) -> str:
 def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str = "") -> str:
     """The point of the highest frame rate in words; where points that differ in more than the
     factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
-    the least image error where each of them measured it (the text says so), else each of them
-    (those of the least error, tied), in sweep order (at most :data:`MAX_TIED_POINTS` named, the rest
-    counted). Points that differ only in ``inert`` are not told apart but counted: "9 points tie as the best
-    at 411 FPS: bsp.levels = 7, any arch.fifo_depth", the factors that vary among them said as
-    :func:`_span` says them. It is "the best point" where
+    the least image error where each of them measured it (the text says so where that error tells them apart;
+    one error of them all is said as one point's), else each of them (those of the least error, tied), in sweep
+    order (at most :data:`MAX_TIED_POINTS` named, the rest counted). Points that differ only in ``inert`` are
+    not told apart but counted: "9 points tie as the best at 411 FPS: bsp.levels = 7, any arch.fifo_depth", the
+    factors that vary among them said as :func:`_span` says them. It is "the best point" where
     no point measured its image error or it has the lowest error of all (said so where not said as
     the least of the tied); else "the fastest point", with its error, and the point of the lowest
     error after it (:func:`_lowest`): a faster point of a larger error is not the best of all. ``of`` follows
@@ -214,8 +214,11 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     tied, least = len(best), ""
     if tied > 1 and len(_measured([g[0] for g in best.values()])) == tied:  # (the least error of the tied decides)
         low = min(float(g[0][ERROR]) for g in best.values())
-        best = {key: g for key, g in best.items() if same_value(float(g[0][ERROR]), low)}
-        least = f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points tied at that frame rate"
+        kept = {key: g for key, g in best.items() if same_value(float(g[0][ERROR]), low)}
+        if len(kept) < tied:  # (else the error tells none apart: each has it, said as one point's is)
+            best = kept
+            least = (f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points tied at that "
+                     "frame rate")
     firsts = [g[0] for g in best.values()]
     errs = [float(r[ERROR]) for r in _measured(rows)]
     lowest = min(errs) if errs else None
@@ -224,7 +227,8 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     word = "fastest" if fastest else "best"
     where = [_where(r, factors) for r in firsts]
     r = firsts[0]
-    own = ("" if least or len(firsts) > 1 or not _number(r.get(ERROR)) else
+    one = all(_number(x.get(ERROR)) and same_value(float(x[ERROR]), float(r[ERROR])) for x in firsts)  # (one error)
+    own = ("" if least or not one else
            f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
            f", with the lowest image error{of} (relative MSE {lowest:.3g})" if lowest is not None else "")
     if sum(map(len, best.values())) > len(best):  # (points that differ only in factors that change nothing: counted)
@@ -233,7 +237,7 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     elif len(where) == 1:
         text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
     else:
-        text = (f"the {word} points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
+        text = (f"the {word} points, tied at {top:.3g} FPS{own}{' and at ' + least if least else ''}, "
                 f"are {_named(where, factors)}")
     return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
 

@@ -4,9 +4,9 @@ side (:func:`dodge`), the legend under a figure, its labels wrapped to the figur
 (:func:`legend_under`), and the points of a factor of numbers whose value is null (``bsp.levels:
 [null, 6, 8]``, null the thesis's depth) drawn apart on its axis of numbers: at the value they
 resolved to where their results folder records it, else at a tick ``null`` beside the numbers
-(:func:`null_points`, :func:`draw_nulls`); a factor of numbers' axis, log from 8x, of base 2 over powers of
-two, ticked at its values (:func:`factor_axis`). A factor's values are ordered and compared as
-:func:`order_key` and :func:`hashable` make them.
+(:func:`null_points`, :func:`draw_nulls`); a factor of numbers' axis, log from 8x where its values are spaced by
+ratios (not 1, 2, ... 10), of base 2 over powers of two, ticked at its values (:func:`factor_axis`). A factor's
+values are ordered and compared as :func:`order_key` and :func:`hashable` make them.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from matplotlib.ticker import MaxNLocator, NullLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, NullLocator
 
 from tlm.report.collect import Sweep
 from tlm.report.common import line_style, log_ticks
@@ -246,17 +246,20 @@ TICK_ROOM = 1 / 15  # the least gap between two values ticked each, of the axis'
 
 def factor_axis(ax, factor: str, xs: list) -> bool:
     """The x axis of a factor of numbers whose points lie at ``xs`` (its values, and those its null points
-    resolved to): log where each is positive and the largest is :data:`LOG_SPAN` times the smallest or more
-    (``arch.pipelines`` 1 to 64: N = 1, 2 and 4 not crammed together at the left), of base 2 where each is a
+    resolved to): log where each is positive, the largest is :data:`LOG_SPAN` times the smallest or more
+    (``arch.pipelines`` 1 to 64: N = 1, 2 and 4 not crammed together at the left) and the values are spaced no
+    less evenly by their ratios than by their differences (:func:`_geometric`: ``arch.page_miss_cycles`` 1 to 10
+    in steps of 1 stays linear), of base 2 where each is a
     whole power of two, else of base 10; a log axis ticked at the values, as :func:`~tlm.report.names.value_text`
     writes them, where they are at most :data:`VALUE_TICKS` and no two are closer than :data:`TICK_ROOM` of the
-    axis (its minor ticks then left out), else as :func:`~tlm.report.common.log_ticks` ticks it (base 10); a
+    axis (its minor ticks then left out), else as :func:`~tlm.report.common.log_ticks` ticks it (base 10; base 2
+    labelled in plain numbers, 1024, not 2^10); a
     linear axis of whole numbers ticked in whole numbers, one value alone too (``bsp.levels [null, 7]``: 7, not
     6.64 to 7.36). Returns whether it is log."""
     given = {float(x): x for x in sorted(xs, key=float)}
     vals = list(given)
     lo, hi = vals[0], vals[-1]
-    log = lo > 0 and hi / lo >= LOG_SPAN
+    log = lo > 0 and hi / lo >= LOG_SPAN and _geometric(vals)
     whole = all(v.is_integer() for v in vals)
     two = log and whole and all(math.log2(v).is_integer() for v in vals)
     if log:
@@ -268,9 +271,26 @@ def factor_axis(ax, factor: str, xs: list) -> bool:
         ax.xaxis.set_minor_locator(NullLocator())
     elif log and not two:
         log_ticks(ax, "x")
+    elif log:  # (base 2's own labels are 2^k: the numbers instead)
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.0f}"))
     elif whole and not log:  # (an integer factor: no 5.5 levels; one value alone ticked, not 6.64 to 7.36)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
     return log
+
+
+def _geometric(vals: list[float]) -> bool:
+    """Whether the sorted distinct positive ``vals`` are spaced at least as evenly by their ratios as by their
+    differences (the coefficient of variation of their log gaps no more than that of their gaps): 1, 2, 4 ... 64
+    and 16, 256, 4096 are, 1, 2, 3 ... 10 is not; two values are."""
+    if len(vals) < 3:
+        return True
+
+    def spread(gaps: list[float]) -> float:
+        mean = sum(gaps) / len(gaps)
+        return math.sqrt(sum((g - mean) ** 2 for g in gaps) / len(gaps)) / mean
+
+    return spread([math.log(b / a) for a, b in itertools.pairwise(vals)]) <= spread(
+        [b - a for a, b in itertools.pairwise(vals)]) + 1e-9
 
 
 def dodge(i: int, n: int) -> float:
