@@ -15,6 +15,7 @@ as it is. Only membership counts: a listed file the user edited in place is read
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -58,11 +59,25 @@ def study_cells(folder: Path) -> tuple[list[Path], list[str]]:
     for results in sorted(folder.glob("*/*/results.json")):
         cell = results.parent
         rel = f"{cell.parent.name}/{cell.name}/results.json"
-        if names is None or rel in names:
+        if names is None or rel in names or moved(folder, rel, names):
             cells.append(cell)
         else:
             notes.append(left_out(cell, "a thesis cell", folder))
     return cells, notes
+
+
+def moved(study: Path, rel: str, names: dict) -> bool:
+    """Whether ``study``'s run file ``rel`` (``<scene>/<mode>/results.json``), which its listing ``names`` does not
+    name, is one it wrote in a folder renamed since (by hand: h420): its size and modification time (ns) are those
+    the listing gives a run file of the study's that is no longer where it was written. Not a file a rerun kept (an
+    earlier study's: its own time), nor one of a listing without stamps."""
+    try:
+        st = os.stat(study / rel)
+    except OSError:
+        return False
+    stamp = (st.st_size, st.st_mtime_ns)
+    return any(was == stamp and name.endswith("/results.json") and not (study / name).exists()
+               for name, was in names.items())
 
 
 def left_out(folder: Path, what: str, study: Path) -> str:
@@ -88,7 +103,8 @@ def own_runs(found: list[tuple[Path, str]], said: list[str], named: list[int]) -
         what = ("a thesis cell" if of == "thesis" and folder.name in MODES else
                 "an extreme case" if of == "extreme" and folder.parent.name == "cases" else None)
         names = listed(study) if what is not None else None
-        if names is not None and f"{folder.parent.name}/{folder.name}/results.json" not in names:
+        rel = f"{folder.parent.name}/{folder.name}/results.json"
+        if names is not None and rel not in names and not moved(study, rel, names):
             said.append(left_out(folder, what, study))
             named.append(1)
         else:
