@@ -7,7 +7,7 @@ points; ``--points 200`` takes 10 page-miss values), so every point shares one f
 A first sweep renders that frame into the functional cache (and compiles the kernels); then
 the same sweep runs ``--repeat`` times with the memos and as many times without them
 (alternating, each into a fresh output folder, ``--jobs 1``, in this process). The memos are
-the scene's fingerprint of a frame's key (:func:`tlm.experiments.frames.scene_key`) and the
+the scene's fingerprint of a frame's key (:func:`tlm.experiments.frame_keys.scene_key`) and the
 programs table (:func:`tlm.arch.costs.load_programs`); "without" sets both memos' size to 0,
 so every point loads the scene and parses the table again, as tlm did before them. Prints
 the CPU seconds (``time.process_time``: the machine's load changes the wall time more) per
@@ -63,7 +63,11 @@ def sweep_file(folder: Path, points: int) -> Path:
 def memos(on: bool) -> None:
     """The two memos at their size (on) or at 0 (off), emptied."""
     import tlm.arch.costs as costs
-    import tlm.experiments.frames as frames
+
+    try:  # (the scene-key memo's module since h487; an older tree's: frames)
+        import tlm.experiments.frame_keys as frames
+    except ImportError:
+        import tlm.experiments.frames as frames
 
     for mod, size in ((frames, 8), (costs, 8)):
         mod.MEMO_SIZE = size if on else 0

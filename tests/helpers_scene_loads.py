@@ -7,6 +7,7 @@ import shutil
 from collections import OrderedDict
 from pathlib import Path
 
+import tlm.experiments.frame_keys as frame_keys
 import tlm.experiments.frames as frames
 import tlm.experiments.loading as loading
 
@@ -24,6 +25,7 @@ def counted_loads(monkeypatch) -> list[str]:
             return load(*args, **kw)
         return counted
 
+    monkeypatch.setattr(frame_keys, "load_scene", counting("key", frame_keys.load_scene))  # (h487: out of frames)
     monkeypatch.setattr(frames, "load_scene", counting("key", frames.load_scene))
     monkeypatch.setattr(loading, "load_scene", counting("render", loading.load_scene))
     return got
@@ -31,7 +33,7 @@ def counted_loads(monkeypatch) -> list[str]:
 
 def another_process(monkeypatch) -> None:
     """What this process remembers of scene fingerprints forgotten, as in a new one (the disk's caches kept)."""
-    monkeypatch.setattr(frames, "_SCENE_KEYS", OrderedDict())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", OrderedDict())
 
 
 def box(folder: Path) -> Path:

@@ -221,7 +221,7 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
     assert used <= allowed | {"tlm.cli_signals", "tlm.cli_failed", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache",
-                              "tlm.cli_run", "tlm.cli_tables"}, used - allowed
+                              "tlm.cli_run", "tlm.cli_tables", "tlm.cli_parser"}, used - allowed
     running = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_run.py")}  # (what tlm run prints, out of cli.py)
     assert running <= allowed - {"tlm.experiments.thesis"}, running - allowed
     caching = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_cache.py")}  # (tlm cache: the caches' folder alone)
@@ -236,6 +236,8 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     assert streams == set(), streams
     arguments = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_args.py")}
     assert arguments <= {"tlm.api"}, arguments
+    parsing = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_parser.py")}  # (the commands' arguments, out of cli.py)
+    assert parsing <= {"tlm", "tlm.api", "tlm.cli_args", "tlm.cli_report", "tlm.errors"}, parsing
     tables = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_tables.py")}  # (what cli.py printed of the studies)
     assert tables <= allowed | {"tlm.cli_report", "tlm.config_words"}, tables - allowed  # (h406: flow_text, base)
     thesis = {n for f in ("cli.py", "cli_tables.py") for m, n in _tlm_imports(ROOT / "tlm" / f)
@@ -252,7 +254,7 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
 @pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_scenes.py", "tlm/api_cache.py",
                                     "tlm/api_common.py", "tlm/cli.py", "tlm/cli_args.py", "tlm/cli_report.py",
                                     "tlm/cli_run.py", "tlm/cli_signals.py", "tlm/cli_streams.py", "tlm/cli_cache.py",
-                                    "tlm/cli_tables.py",
+                                    "tlm/cli_tables.py", "tlm/cli_parser.py",
                                     *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):

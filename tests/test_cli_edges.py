@@ -24,6 +24,7 @@ import pytest
 
 import tlm
 import tlm.cli as cli
+import tlm.cli_parser as cli_parser
 from tlm import cli_signals
 
 REPO = Path(__file__).resolve().parents[1]
@@ -153,13 +154,13 @@ def test_a_module_named_tlm_cli_something_gets_argument_names(tmp_path, capsys):
 def test_every_no_progress_is_made_by_the_shared_option(monkeypatch):
     """``tlm sweep``'s had its own copy of the argument and its help."""
     made = []
-    real = cli.no_progress
+    real = cli_parser.no_progress  # (the commands' arguments: tlm.cli_parser, out of tlm.cli, h487)
 
     def recorded(parser, *args):
         made.append(parser.prog)
         return real(parser, *args)
 
-    monkeypatch.setattr(cli, "no_progress", recorded)
+    monkeypatch.setattr(cli_parser, "no_progress", recorded)
     parser = cli.build_parser()
     commands = parser._subparsers._group_actions[0].choices  # (argparse's: the subcommands' parsers)
     taking = [p.prog for p in commands.values() if any("--no-progress" in a.option_strings for a in p._actions)]

@@ -37,15 +37,20 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.experiments",
      "tlm.experiments.reference_resume",  # (h454: an interrupted reference resumed, out of reference)
      "tlm.experiments.error_cost_blur",  # (h483: error-vs-cost's blur warning, once per study, out of error_cost)
+     "tlm.experiments.frame_keys",  # (h487: the scene's part of a frame's key, remembered, out of frames)
      "tlm.experiments.sweep_folder"),  # (h489: what a sweep finds in its folder from before it, out of sweep)
     ("tlm.report",
-     "tlm.report.written"),  # (h477: which files of a run folder its run wrote, the report's only reads)
+     "tlm.report.written",  # (h477: which files of a run folder its run wrote, the report's only reads)
+     "tlm.report.summary_studies",  # (h487: the summary's words on the studies, no figure, out of summary)
+     "tlm.report.tradeoff_studies"),  # (h487: what the tradeoff section reads of a study, no figure, out of tradeoff)
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
      "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)
      "tlm.cli", "tlm.cli_args",
      "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_failed", "tlm.cli_streams", "tlm.cli_cache",
-     "tlm.cli_tables", "tlm.__main__", "tlm"),
+     "tlm.cli_tables",
+     "tlm.cli_parser",  # (h487: the commands' arguments, their help and checks, out of tlm.cli)
+     "tlm.__main__", "tlm"),
 )
 
 

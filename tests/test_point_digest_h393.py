@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from tlm.config import config_from_dict
-from tlm.experiments import frames, sweep_point
+from tlm.experiments import frame_keys, frames, sweep_point
 from tlm.experiments.provenance import scene_identity
 from tlm.experiments.run import run as run_experiment
 from tlm.experiments.sweep import run_sweep
@@ -35,7 +35,7 @@ POWER = "power: [1100000.0, 950000.0, 750000.0]"
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache, monkeypatch):  # (tests/conftest.py; this process's memo of scene keys, emptied)
-    monkeypatch.setattr(frames, "_SCENE_KEYS", type(frames._SCENE_KEYS)())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", type(frame_keys._SCENE_KEYS)())
     return cache
 
 
@@ -74,7 +74,7 @@ def test_a_points_digest_is_that_of_a_run_of_its_scene_its_frame_cached_or_not(w
     assert [p["functional"]["cached"] for p in first] == [False, True]
     digest = _run_digest(scene, tmp_path / "run")
     assert [p["scene_digest"] for p in first] == [digest, digest]
-    frames._SCENE_KEYS.clear()  # (another process: its key remembered on disk for a mesh scene, else loaded)
+    frame_keys._SCENE_KEYS.clear()  # (another process: its key remembered on disk for a mesh scene, else loaded)
     assert [p["scene_digest"] for p in _sweep(tmp_path, scene, tmp_path / "b")] == [digest, digest]
     if which == "mesh":  # (a key kept by a tlm before the digest: the files digested now, the same)
         kept = list((tmp_path / "cache" / "scenes").glob("key-*.json"))
@@ -83,7 +83,7 @@ def test_a_points_digest_is_that_of_a_run_of_its_scene_its_frame_cached_or_not(w
             body = json.loads(path.read_text(encoding="utf-8"))
             assert body["digest"] == digest
             path.write_text(json.dumps({k: v for k, v in body.items() if k != "digest"}), encoding="utf-8")
-        frames._SCENE_KEYS.clear()
+        frame_keys._SCENE_KEYS.clear()
         assert [p["scene_digest"] for p in _sweep(tmp_path, scene, tmp_path / "c")] == [digest, digest]
 
 

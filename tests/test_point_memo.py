@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 import tlm.config
+import tlm.experiments.frame_keys as frame_keys
 import tlm.experiments.frames as frames
 from tlm.arch import costs
 from tlm.config import config_from_dict
@@ -45,6 +46,7 @@ def loads(monkeypatch):
         got["texts"].append(text)
         return parse(text)
 
+    monkeypatch.setattr(frame_keys, "load_scene", counted_load)  # (the key's: frame_keys, h487)
     monkeypatch.setattr(frames, "load_scene", counted_load)
     monkeypatch.setattr(tlm.config, "parse_yaml", counted_parse)
     return got
@@ -166,7 +168,7 @@ def test_scene_memo_keeps_a_few_scenes(tmp_path, loads):
     for i in range(frames.MEMO_SIZE + 2):
         (tmp_path / f"s{i}.yaml").write_text(f"extends: cornell\nname: s{i}\n")
         render_key(cfg(f"s{i}.yaml"), tmp_path)
-    assert len(frames._SCENE_KEYS) == frames.MEMO_SIZE
+    assert len(frame_keys._SCENE_KEYS) == frames.MEMO_SIZE
     n = len(loads["scenes"])
     render_key(cfg(f"s{frames.MEMO_SIZE + 1}.yaml"), tmp_path)  # the last: remembered
     assert len(loads["scenes"]) == n

@@ -14,13 +14,13 @@ import json
 import pytest
 
 from tests.test_point_digest_h393 import _mesh_scene
-from tlm.experiments import frames
+from tlm.experiments import frame_keys, frames
 from tlm.experiments.provenance import scene_identity
 
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache, monkeypatch):  # (tests/conftest.py; this process's memo of scene keys, emptied)
-    monkeypatch.setattr(frames, "_SCENE_KEYS", type(frames._SCENE_KEYS)())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", type(frame_keys._SCENE_KEYS)())
     return cache
 
 
@@ -55,7 +55,7 @@ def test_a_key_file_of_a_scene_saved_with_other_line_ends_is_digested_again(tmp_
     (kept,) = (tmp_path / "cache" / "scenes").glob("key-*.json")
     assert json.loads(kept.read_text(encoding="utf-8"))["digest"] == first
     _crlf(path)
-    frames._SCENE_KEYS.clear()  # (another process: the key on disk)
+    frame_keys._SCENE_KEYS.clear()  # (another process: the key on disk)
     now, loaded = _digest(path)
     assert not loaded and now == scene_identity(path) != first  # (was: first)
     assert json.loads(kept.read_text(encoding="utf-8"))["digest"] == now  # (kept: digested once, not per process)
@@ -68,7 +68,7 @@ def test_a_key_files_damaged_digest_is_not_recorded(damage, tmp_path):
     (kept,) = (tmp_path / "cache" / "scenes").glob("key-*.json")
     body = json.loads(kept.read_text(encoding="utf-8"))
     kept.write_text(json.dumps({**body, "digest": damage}), encoding="utf-8")
-    frames._SCENE_KEYS.clear()
+    frame_keys._SCENE_KEYS.clear()
     assert _digest(path) == (first, False)  # (the scene's files digested again, its mesh not parsed)
     assert json.loads(kept.read_text(encoding="utf-8"))["digest"] == first
 

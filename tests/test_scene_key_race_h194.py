@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
+import tlm.experiments.frame_keys as frame_keys
 import tlm.experiments.frames as frames
 import tlm.scenes.materials as materials
 from tlm import cache_admin
@@ -36,7 +37,7 @@ OLD, NEW = "Kd 0.725 0.71 0.68", "Kd 0.1 0.71 0.68"  # (the first such line of t
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache, monkeypatch):  # (tests/conftest.py; nothing this process remembered from another test)
-    monkeypatch.setattr(frames, "_SCENE_KEYS", OrderedDict())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", OrderedDict())
     return cache
 
 
@@ -85,7 +86,7 @@ def test_an_mtl_saved_while_the_scene_loads_leaves_no_fingerprint_remembered(tmp
     before = fresh(path)
     done = racing(monkeypatch, materials, "parse_mtl", lambda: edit(mtl))
     assert frames.scene_key(path) == before and done  # (the bytes it read: the old material)
-    assert remembered(cache) == [] and not frames._SCENE_KEYS
+    assert remembered(cache) == [] and not frame_keys._SCENE_KEYS
     after = fresh(path)
     assert after != before
     assert frames.scene_key(path) == after  # (this process: loaded again)
@@ -93,7 +94,7 @@ def test_an_mtl_saved_while_the_scene_loads_leaves_no_fingerprint_remembered(tmp
     assert frames.scene_key(path) == after  # (another: so too)
     assert len(remembered(cache)) == 1  # (a load no edit raced: remembered, and given again)
     another_process(monkeypatch)
-    monkeypatch.setattr(frames, "load_scene", lambda *a, **k: pytest.fail("loaded: not remembered"))
+    monkeypatch.setattr(frame_keys, "load_scene", lambda *a, **k: pytest.fail("loaded: not remembered"))
     assert frames.scene_key(path) == after
 
 
@@ -111,7 +112,7 @@ def test_an_mtl_saved_after_its_mesh_entry_was_checked_leaves_no_fingerprint_rem
     another_process(monkeypatch)
     done = racing(monkeypatch, scene_cache, "_geometry", lambda: edit(mtl))
     assert frames.scene_key(path) == before and done  # (read back from the entry: the old material)
-    assert remembered(cache) == [] and not frames._SCENE_KEYS
+    assert remembered(cache) == [] and not frame_keys._SCENE_KEYS
     another_process(monkeypatch)  # (the race is over: what it patched reads as ever)
     after = frames.scene_key(path)
     assert after == fresh(path) != before
@@ -162,7 +163,7 @@ def test_a_gltf_buffer_saved_while_the_scene_loads_leaves_no_fingerprint_remembe
     before = fresh(path)
     done = racing(monkeypatch, trimesh, "load", halved)  # (its first call: the cube's; the OBJ is tlm's own reader)
     assert frames.scene_key(path) == before and done
-    assert remembered(cache) == [] and not frames._SCENE_KEYS
+    assert remembered(cache) == [] and not frame_keys._SCENE_KEYS
     another_process(monkeypatch)
     after = frames.scene_key(path)
     assert after == fresh(path) != before
@@ -180,7 +181,7 @@ def test_a_load_that_read_one_library_twice_different_remembers_nothing(tmp_path
     mtl = tmp_path / "meshes" / "CornellBox-Original.mtl"
     done = racing(monkeypatch, materials, "parse_mtl", lambda: edit(mtl))
     frames.scene_key(path)
-    assert done and remembered(cache) == [] and not frames._SCENE_KEYS
+    assert done and remembered(cache) == [] and not frame_keys._SCENE_KEYS
 
 
 # ------------------------------------------------------------------ tlm cache prune, interrupted

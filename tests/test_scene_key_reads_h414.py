@@ -10,13 +10,13 @@ import os
 
 import pytest
 
-from tlm.experiments import frames
+from tlm.experiments import frame_keys, frames
 from tlm.experiments.provenance import scene_identity
 
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache, monkeypatch):  # (tests/conftest.py; this process's memo of scene keys, emptied)
-    monkeypatch.setattr(frames, "_SCENE_KEYS", type(frames._SCENE_KEYS)())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", type(frame_keys._SCENE_KEYS)())
     return cache
 
 
@@ -42,9 +42,9 @@ def test_a_key_hit_reads_the_scene_file_once(where, tmp_path, monkeypatch):
     first = frames._scene_key(str(path), None, None, None)
     assert first[1] is not None  # (loaded: the key remembered)
     if where == "disk":  # (another process: the key file on disk; a scene without meshes keeps none, so keep it)
-        checks = frames._SCENE_KEYS[next(iter(frames._SCENE_KEYS))]
-        frames._keep_key(next(iter(frames._SCENE_KEYS)), *checks)
-        frames._SCENE_KEYS.clear()
+        checks = frame_keys._SCENE_KEYS[next(iter(frame_keys._SCENE_KEYS))]
+        frames._keep_key(next(iter(frame_keys._SCENE_KEYS)), *checks)
+        frame_keys._SCENE_KEYS.clear()
     assert first[2] == scene_identity(path)
     opened = _counting(monkeypatch, path)
     fingerprint, scene, digest = frames._scene_key(str(path), None, None, None)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import tlm
+import tlm.experiments.frame_keys as frame_keys
 import tlm.experiments.frames as frames
 from tlm.config import config_from_dict
 from tlm.experiments import run as runs
@@ -21,7 +22,7 @@ CONFIG = {"scene": "cornell", "resolution": [8, 8], "render": {"spp": 1, "light_
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache, monkeypatch):  # (tests/conftest.py; and no fingerprint remembered from another test)
-    monkeypatch.setattr(frames, "_SCENE_KEYS", type(frames._SCENE_KEYS)())
+    monkeypatch.setattr(frame_keys, "_SCENE_KEYS", type(frame_keys._SCENE_KEYS)())
     return cache
 
 
@@ -64,7 +65,7 @@ def test_a_miss_loads_the_scene_once_and_a_hit_renders_nothing(mode, loads, rend
     assert "load_scene" in cold.summary["host_seconds"]  # (the key's load, booked to the render)
     warm = frames.cached_render(settings(mode))  # (the fingerprint remembered: no load at all)
     assert warm.cached and renders == [mode] and loads == ["key"]
-    frames._SCENE_KEYS.clear()  # (another process: the key loads the scene, the cache holds the frame)
+    frame_keys._SCENE_KEYS.clear()  # (another process: the key loads the scene, the cache holds the frame)
     again = frames.cached_render(settings(mode))
     assert again.cached and renders == [mode] and loads == ["key", "key"]
     # another frame of a remembered scene: the key loads nothing, the render loads it once

@@ -1,7 +1,8 @@
 """Command line: ``tlm run | sweep | scene | params | ...``. Argument parsing and printing only:
 every command calls :mod:`tlm.api` and prints what it returns; how a command ends (its
 signals, its one-line errors, its exit status) is :mod:`tlm.cli_signals`, the report it writes
-at its end :mod:`tlm.cli_report`, what ``tlm run`` prints :mod:`tlm.cli_run`."""
+at its end :mod:`tlm.cli_report`, what ``tlm run`` prints :mod:`tlm.cli_run`, each command's
+arguments :mod:`tlm.cli_parser`."""
 
 from __future__ import annotations
 
@@ -15,10 +16,9 @@ import sys
 import time
 from pathlib import Path
 
-from tlm import api, claims, cli_report, storage
-from tlm.api import MODES, Deadlock, InputError
-from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
-from tlm.cli_args import experiment_argument as _experiment_file
+from tlm import api, claims, cli_parser, cli_report, storage
+from tlm.api import Deadlock, InputError
+from tlm.cli_args import Parser
 from tlm.cli_cache import add_cache_parser, cache_command
 from tlm.cli_failed import deadlock_line, exit_status
 from tlm.cli_report import kept_whole, report_after, report_claimed, say_err, study_claimed, sweep_cut_short
@@ -38,7 +38,7 @@ from tlm.cli_tables import GranularityProgress, print_granularity, print_point_w
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
-from tlm.errors import check_numba_threads, path_shown, shell_word
+from tlm.errors import check_numba_threads, shell_word
 
 
 def _say(line: str) -> None:
@@ -125,37 +125,7 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-# the commands whose positional ``config`` is an experiment file or a built-in experiment's name
-EXPERIMENT_ARGS = ("run", "sweep", "reference", "error-vs-cost", "thesis", "granularity", "calibrate", "extreme")
-
-
-def _figure_args(args: argparse.Namespace) -> None:
-    """``--formats`` and ``--dpi`` checked before the command does any work (as ``tlm report``
-    checks them, :func:`tlm.api.report_output`); with ``--no-report`` they would be read by
-    nothing: refused, not dropped."""
-    given = [f"--{k}" for k in ("formats", "dpi") if getattr(args, k, None) is not None]
-    if not given:
-        return
-    if getattr(args, "no_report", False):
-        raise InputError(f"{'set' if len(given) > 1 else 'sets'} the report's figure files, and --no-report "
-                         "writes no report: give one or the other", key=" and ".join(given))
-    api.report_output(args.formats, args.dpi)
-
-
-def _experiment_arg(args: argparse.Namespace) -> None:
-    """``args.config`` of an experiment command as the file it names: the path given when it
-    exists, else the built-in experiment of that name (said on stderr, with its file);
-    anything else is an InputError (:func:`tlm.api.experiment_path`)."""
-    if getattr(args, "cmd", None) not in EXPERIMENT_ARGS:
-        return
-    path = api.experiment_path(args.config, args.cmd)
-    if path == Path(args.config):  # (the path given, as given: dd/ and ./dd are no built-in experiment's)
-        if path.is_dir():  # (said once, as such: not read as a file, which says it cannot)
-            raise InputError("is a folder, not a config file: name a YAML file, or a built-in experiment "
-                             "('tlm config list')", source=args.config)
-        return
-    say_err(f"{path_shown(args.config)}: the built-in experiment {path_shown(path)}")
-    args.config, args.given = str(path), args.config  # (given: as typed, for a command printed to run again)
+EXPERIMENT_ARGS = cli_parser.EXPERIMENT_ARGS  # (the commands whose config is an experiment's: importable here)
 
 
 def _cmd_config(args: argparse.Namespace) -> int:
@@ -452,180 +422,64 @@ def _overrides(args: argparse.Namespace) -> dict[str, list[str]]:
     return {"overrides": given} if given else {}
 
 
-def _set_option(parser: argparse.ArgumentParser, where: str, example: str = "'resolution=[64, 64]'") -> None:
-    """``--set KEY=VALUE`` of a command that runs configs made from a file's base (``where``: what
-    it applies to, and what it may not set), as ``tlm run --set`` reads it; ``example``: a --set,
-    as typed, that the command takes with each of its built-in experiments (not a key they set
-    themselves, which it refuses: tests/test_help_docs_h188.py)."""
-    parser.add_argument("--set", action="append", metavar="KEY=VALUE",
-                        help=f"override a parameter by dotted key, as tlm run --set does (repeated; e.g. --set "
-                        f"{example}), in {where}")
-
-
 def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``tlm`` and its commands: each command's name, help and handler here, its arguments
+    :mod:`tlm.cli_parser`'s."""
     p = Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
     p.add_argument("--version", action="version", version=version())
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
-    r.add_argument("config", help="experiment YAML (see 'tlm params'), a built-in experiment's name ('tlm config "
-                   "list'), or a scene YAML to render at the default settings")
-    r.add_argument("--out", type=folder_name, help="run folder (default: runs/<config name>)")
-    r.add_argument("--mode", choices=MODES, help="override the mode")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
-    r.add_argument("--seed", type=int, help="override the seed")
-    r.add_argument("--outputs", metavar="NAMES", help="what the run folder gets besides images/ and results.json: "
-                   "a comma-separated list of aov, radiance, trace (default: all three; 'images' alone: none)")
-    r.add_argument("--no-reference", action="store_true", help="a photon-map run without a cached reference "
-                   "does not compute one (nor its error); default: reference.auto (see 'tlm reference')")
-    no_progress(r)
-    no_report(r)
+    cli_parser.run_arguments(r)
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
-    _experiment_file(sw, "sweep YAML (base, set, grid, zip)", "sweep_fifo")
-    sw.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
-                    "render.threads, without its cap of 8; 1 = in this process); a point that leaves "
-                    "render.threads null gets max(1, CPUs // workers) kernel threads (at most 8), so --jobs x "
-                    "render.threads stays within the CPUs; not with --dask tcp://...: its workers are the cluster's")
-    sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
-                    help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address "
-                    "(its points run as many at once as its workers have threads)")
-    sw.add_argument("--dask-wait", type=seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
-                    "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
-                    "(default: 300)")
-    _set_option(sw, "every point's base config, after the sweep file's set: and before its factors (a factor's "
-                "key is refused); part of each point's hash, and listed in sweep.yaml")
-    sw.add_argument("--reference", action="store_true", help="compute and cache, before the points, each photon-map "
-                    "reference they need that is not cached, or cached short of its tolerance where more rounds are "
-                    "allowed (as 'tlm reference' decides), so their error is measured")
-    sw.add_argument("--dry-run", action="store_true", help="run nothing and write no output (no folder, no frame or "
-                    "reference or parsed scene in the cache, no report): check "
-                    "the sweep file, --set and --out as the sweep does, then say how many points are done already in "
-                    "--out (skipped) and to run, how many frames they share and how many of those are cached, the "
-                    "references --reference would compute, the stale folders it would remove and the warnings it "
-                    "would give before its points run")
-    sw.add_argument("--json", action="store_true", help="with --dry-run: print the plan as one JSON object (its "
-                    "warnings in it) in place of the summary")
-    no_progress(sw)
-    no_report(sw)
+    cli_parser.sweep_arguments(sw)
     sw.set_defaults(func=_cmd_sweep)
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
                         "(Figs. 18-20)")
-    sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
-    sc.add_argument("--out", type=folder_name, help="output folder (default: runs/eq52_<first sweep folder's name>)")
-    no_progress(sc, NO_BAR)
-    no_report(sc)
+    cli_parser.scaling_arguments(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
-    ss = s.add_subparsers(dest="scene_cmd", required=True, metavar="{list,show,export}")
-    sl = ss.add_parser("list", help="the built-in scenes (names for a config's scene: key)")
-    sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
-    sl.add_argument("--all", action="store_true", help="also the scenes of bad input on purpose (tests of the "
-                    "error messages: a description that starts 'Bad input')")
-    sh = ss.add_parser("show", help="triangle count, bounds, materials, lights, camera, and notes on what the mesh "
-                       "files gave that was imported or left out")
-    sh.add_argument("name", help="built-in scene name or scene YAML path")
-    se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ), or the whole "
-                       "scene as a scene file (.yaml, with its OBJ and MTL beside it)")
-    se.add_argument("name", help="built-in scene name or scene YAML path")
-    se.add_argument("file", help="output .ply, .obj or .yaml")
+    cli_parser.scene_commands(s)
     s.set_defaults(func=_cmd_scene)
     rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config",
                         description="Compute and cache the converged photon-map reference of a config. Exit "
                         "status 0 when it is converged (or cached so), 1 when it stopped at reference.max_rounds "
                         "without reaching reference.tolerance (cached where it is better than a cached one, else "
                         "the cache keeps its own; the line says which, and what to raise), 2 for bad input.")
-    rf.add_argument("config", help="experiment YAML, or a built-in experiment's name: cornell_pmap")
-    rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
-    rf.add_argument("--force", action="store_true", help="compute again even if cached")
-    no_progress(rf)
+    cli_parser.reference_arguments(rf)
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
-    _experiment_file(ev, "experiment YAML (base config and grids of points)", "error_vs_cost")
-    ev.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
-                    help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
-                         "measured against (default: %(default)s; computed once and cached; needs Mitsuba 3 and "
-                         "flip-evaluator: pip install -e '.[oracle]' in a checkout); 0: none")
-    _set_option(ev, "the base config of every point (a key the points vary, or mode, is refused)")
-    no_progress(ev, NO_BAR)
-    no_report(ev)
+    cli_parser.error_vs_cost_arguments(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
-    _experiment_file(th, "study YAML (base, scenes, modes; without base every cell runs at the default "
-                        "settings, not the thesis's)", "thesis")
-    th.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    _set_option(th, "the base config of every cell (scene and mode, which scenes: and modes: set, are refused)")
-    no_progress(th)
-    no_report(th)
+    cli_parser.thesis_arguments(th)
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
-    _experiment_file(gr, "YAML with base and packet_sizes", "tlm_granularity")
-    gr.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    _set_option(gr, "the base config (arch.packet_size, which packet_sizes sets, is refused)")
-    no_progress(gr, NO_BAR)
-    no_report(gr)
+    cli_parser.granularity_arguments(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
                         "to the RCast column of Tables I-III")
-    _experiment_file(ca, "study YAML with at least two of the thesis's scenes and mode rcast", "thesis")
-    ca.add_argument("--write", type=table_file, metavar="TABLE",
-                    help="table to write (default: the study's own, its base.arch.programs, else the packaged "
-                    "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
-                    "than the thesis's)")
-    ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
-    no_progress(ca, NO_BAR)
+    cli_parser.calibrate_arguments(ca)
     ca.set_defaults(func=_cmd_calibrate)
     rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity, "
                         "error-vs-cost or extreme folders")
-    rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
-    rp.add_argument("--out", type=folder_name,
-                    help="report folder (default: DIR/report; required for several folders)")
-    rp.add_argument("--title", type=title, help="the page's title (default: tlm report: and the folders' names)")
-    no_progress(rp)
-    figure_files(rp)
+    cli_parser.report_arguments(rp)
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
-    _experiment_file(ex, "cases YAML", "extreme")
-    ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    _set_option(ex, "the base config merged under every case's (a key a case's config gives is refused)",
-                example="render.spp=2")  # (its cases set resolution)
-    no_progress(ex, NO_BAR)
-    no_report(ex)
+    cli_parser.extreme_arguments(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run the committed studies of configs/ (thesis, six sweeps and their eq. 5.2 "
                         "fit, granularity, error-vs-cost, extreme) and the cornell_pmap run, not the other "
                         "single-scene run configs, and write their report into plots/")
-    pl.add_argument("--configs", help="folder of the experiment files (default: ./configs where it exists, else "
-                    "the built-in experiments: 'tlm config list'); a step whose file NAME.yaml it lacks is skipped, "
-                    "said in a line, unless --only names it")
-    pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
-    pl.add_argument("--out", type=folder_name, default="plots", help="report folder (default: plots)")
-    pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps, of: thesis "
-                    "scaling_ring scaling_room scaling_cornell design_space bsp_levels sweep_fifo eq52 tlm_granularity "
-                    "error_vs_cost cornell_pmap extreme (--only may be given again); the report reads every step's "
-                    "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
-                    "the report still run, and tlm plots then exits 1")
-    no_progress(pl, "passed to every step (of them tlm thesis and tlm run draw bars, when stderr is a terminal; "
-                "the sweep steps run with --no-progress always, and the report tlm plots writes draws none)")
-    figure_files(pl)
+    cli_parser.plots_arguments(pl)
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
                         "tlm), or copy one out to edit")
-    cs = co.add_subparsers(dest="config_cmd", required=True, metavar="{list,export}")
-    cl = cs.add_parser("list", help="the built-in experiments: names that the commands taking an experiment file "
-                       "take instead (tlm run cornell_pmap)")
-    cl.add_argument("-l", "--long", action="store_true", help="with the command that runs each one and its "
-                    "description")
-    ce = cs.add_parser("export", help="copy a built-in experiment into a file to edit (a sweep's base config "
-                       "beside it too)")
-    ce.add_argument("name", help="built-in experiment name ('tlm config list')")
-    ce.add_argument("file", help="output .yaml")
+    cli_parser.config_commands(co)
     co.set_defaults(func=_cmd_config)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
@@ -658,8 +512,8 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 args = parser.parse_args(argv)
                 args.argv = argv
-                _experiment_arg(args)
-                _figure_args(args)
+                cli_parser.experiment_arg(args)
+                cli_parser.figure_args(args)
                 writes = _writes_files(args)
                 if writes:  # (a render, a report's figures: OpenBLAS's buffer mapped first, blas_buffer_mapped)
                     blas_buffer_mapped()

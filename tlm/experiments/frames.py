@@ -20,7 +20,7 @@ the cache) and rendered again; an entry whose file is removed under its reader (
 another process) is a miss, rendered again quietly. A frame read marks its entry used, for ``tlm cache
 prune``. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
 
-A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
+A key needs the scene's content: :func:`~tlm.experiments.frame_keys.scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
 sweep that differ only in ``arch`` do not load it again each; a scene with mesh files, on disk
 too (``scenes/key-<hash>.json``), so that another process (a rerun of a sweep whose points are
@@ -34,9 +34,7 @@ import hashlib
 import io
 import json
 import os
-import re
 import threading
-from collections import OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -53,17 +51,19 @@ from tlm.caches import (
     note_use,
     remove_entry,
 )
-from tlm.config import config_from_dict, decoded, noting_reads, read_bytes, text_digest, to_dict
-from tlm.errors import InputError
+from tlm.config import config_from_dict, to_dict
 from tlm.experiments import run
-from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
-from tlm.experiments.provenance import scene_identity
+from tlm.experiments.frame_keys import MEMO_SIZE as MEMO_SIZE  # (the scene's part of a key: out of here, h487)
+from tlm.experiments.frame_keys import keep_key as _keep_key  # noqa: F401  (kept importable from here, by its old name)
+from tlm.experiments.frame_keys import scene_key as scene_key
+from tlm.experiments.frame_keys import scene_key_loaded as _scene_key
+from tlm.experiments.frame_scenes import moved_line
+from tlm.experiments.frame_scenes import scene_fingerprint as scene_fingerprint
 from tlm.experiments.run_warnings import emitted_photons, reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.checks import note_warnings
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
-from tlm.scenes.cache import parse_versions, writable
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.model import Scene
 from tlm.storage import warn, write_atomic, write_file
@@ -131,8 +131,8 @@ def summary_problem(summary: dict) -> str | None:
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
-    """The cache key of ``cfg``'s frame (loads the scene, or remembers it: :func:`scene_key`;
-    a bad scene is an InputError)."""
+    """The cache key of ``cfg``'s frame (loads the scene, or remembers it:
+    :func:`~tlm.experiments.frame_keys.scene_key`; a bad scene is an InputError)."""
     return _keyed(cfg, base, source)[0]
 
 
@@ -140,198 +140,10 @@ def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = Non
            ) -> tuple[str, Scene | None, str | None]:
     """:func:`render_key` with the scene its key loaded (None where the fingerprint was
     remembered), so that a render on a cache miss does not load it again, and the scene's digest
-    (:func:`_scene_key`); ``timer``: gets the stage ``load_scene`` of that load."""
+    (:func:`~tlm.experiments.frame_keys.scene_key_loaded`); ``timer``: gets the stage ``load_scene`` of that
+    load."""
     fingerprint, scene, digest = _scene_key(cfg.scene, base, cfg.resolution, source, timer)
     return functional_key(cfg, fingerprint, code_fingerprint()), scene, digest
-
-
-MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
-_SCENE_KEYS: OrderedDict[tuple, tuple] = OrderedDict()  # inputs -> (fingerprint, checks, scene digest, _yaml_bytes)
-_MEMO_LOCK = threading.Lock()
-
-
-def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None, source: str | None = None
-              ) -> str:
-    """:func:`scene_fingerprint` of :func:`~tlm.scenes.loader.load_scene` ``(ref, base,
-    resolution, source)``, remembered: the points of a sweep that differ only in ``arch``
-    share a frame, and its key no longer loads the scene at each point.
-
-    It is remembered (:data:`MEMO_SIZE` scenes, the least recently used forgotten) by the
-    arguments but ``source`` (which only names the config in an error), the working folder,
-    the scene file they name and the code (:func:`~tlm.fingerprint.code_fingerprint`), with
-    every file the load read (:func:`tlm.config.noting_reads`): the scene file and its
-    ``extends:`` chain by the sha256 of their text and the file each ``extends:`` finds now,
-    each mesh file with the files its load read beside it (an OBJ's material libraries, as the
-    load finds them now; a glTF's buffers) by their sha256, which must be that of the bytes the
-    parse read (a load during which one was saved is not remembered). A remembered fingerprint is given
-    again only while all of them are as they were, so a file edited between two sweeps of one
-    process (even to the same size and modification time) is read again. A load that read a
-    file it cannot check this way is not remembered. Only the fingerprint (a string) is kept,
-    not the :class:`~tlm.scenes.model.Scene`, so no caller can change what is remembered."""
-    return _scene_key(ref, base, resolution, source)[0]
-
-
-def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str | None,
-               timer: Timer | None = None) -> tuple[str, Scene | None, str | None]:
-    """:func:`scene_key` with the scene it loaded, or None where it gave the remembered
-    fingerprint (a caller that renders next uses this one: the scene loaded once), and the scene's
-    digest (``results.json``'s ``scene_digest``, as :func:`tlm.experiments.run.render` records a run's:
-    :func:`~tlm.experiments.provenance.scene_identity` of the files that load read, from the digests it
-    computed), remembered with the fingerprint (in this process and on disk) while those files are
-    unchanged and its YAML files keep their bytes (:func:`_yaml_bytes`: the checks tell their text): a sweep's points
-    of one scene digest it once (an entry on disk of a tlm before it, none: its files digested once, and kept).
-
-    A fingerprint is remembered in this process and, for a scene with mesh files (their parse is the
-    cost), on disk too (:func:`_kept_key`: ``scenes/key-<hash>.json`` in tlm's cache), under the same key
-    and checks: another process (a rerun of a sweep whose points are done, a sweep's worker) gives it
-    without loading the scene while every file the load read is as it was (each file's sha256: the
-    mesh parsed from the same bytes by the same code gives the same fingerprint), so a rerun that
-    computes nothing parses no mesh, nor writes a pruned mesh entry back. The key is the parsed
-    scene's fingerprint as ever: what is remembered is only which one those files give."""
-    timer = Timer() if timer is None else timer
-    path = resolve_scene_path(ref, base, source)  # (a missing scene: load_scene's own error)
-    # (not ``source``: it names the config in a load's errors, and a remembered load had none)
-    key = (os.fspath(ref), None if base is None else str(base),
-           None if resolution is None else tuple(resolution), os.getcwd(), str(path), code_fingerprint())
-    try:
-        hash(key)
-    except TypeError:  # (a resolution of other items than numbers: load_scene says what is wrong)
-        with timer.stage("load_scene"), noting_reads() as reads:
-            scene = load_scene(ref, base, resolution, source)
-            digest = scene_identity(scene.source, reads) if scene.source else None
-        return scene_fingerprint(scene), scene, digest
-    with _MEMO_LOCK:
-        hit = _SCENE_KEYS.get(key)
-    if hit is None:
-        hit = _kept_key(key)
-    now = None if hit is None else _told(hit[1])  # (before the digest: a file saved between is digested again next)
-    if now is not None:
-        if hit[2] is None or now != hit[3]:  # (an entry of a tlm before the digest; a YAML file's bytes not those
-            # digested, its text the same (its line ends: the checks' text is in universal newlines): digested now)
-            hit = (hit[0], hit[1], scene_identity(path), now)
-            if any(c[0] in ("libraries", "listed") for c in hit[1]):  # (kept on disk: once, not once a process)
-                _keep_key(key, *hit)
-        with _MEMO_LOCK:
-            _SCENE_KEYS[key] = hit
-            _SCENE_KEYS.move_to_end(key)
-            while len(_SCENE_KEYS) > MEMO_SIZE:
-                _SCENE_KEYS.popitem(last=False)
-        return hit[0], None, hit[2]
-    with noting_reads() as reads, timer.stage("load_scene"):
-        scene = load_scene(ref, base, resolution, source)
-    fingerprint = scene_fingerprint(scene)
-    checks = read_checks(reads)  # (the load's reads alone: not the digest's own read of the scene's YAML)
-    now = None if checks is None else _yaml_bytes(checks)
-    with timer.stage("load_scene"):  # (of the load's stage, as a run's: its files' digests, most of them the load's)
-        digest = scene_identity(scene.source, reads) if scene.source else None
-    with _MEMO_LOCK:
-        _SCENE_KEYS.pop(key, None)
-        if checks is not None:
-            _SCENE_KEYS[key] = (fingerprint, checks, digest, now)
-            while len(_SCENE_KEYS) > MEMO_SIZE:
-                _SCENE_KEYS.popitem(last=False)
-    if checks is not None and any(c[0] in ("libraries", "listed") for c in checks):  # (a mesh parsed: the cost)
-        _keep_key(key, fingerprint, checks, digest, now)
-    return fingerprint, scene, digest
-
-
-def _told(checks: list) -> list | None:
-    """:func:`_yaml_bytes` of a remembered load's ``checks`` where every file tells what it told then
-    (:func:`~tlm.experiments.frame_scenes.unchanged`, in their order), else None: each YAML file read once, its
-    ``text`` check's text (:func:`tlm.config.read_text`) and its bytes' sha256 from one read."""
-    sums = []
-    try:
-        for check in checks:
-            if check[0] != "text" or len(check) != 3:  # (a text check of other arguments: unchanged's TypeError)
-                if not unchanged([check]):
-                    return None
-                continue
-            data = read_bytes(Path(check[1]))
-            if text_digest(decoded(data, Path(check[1]))) != check[-1]:
-                return None
-            sums.append(hashlib.sha256(data).hexdigest())
-    except (OSError, InputError, ValueError, TypeError, AttributeError, KeyError, IndexError):
-        return None  # (as unchanged: a file gone or unreadable, a check read from disk not understood)
-    return sums
-
-
-def _yaml_bytes(checks: list) -> list | None:
-    """The sha256 of the bytes of each YAML file of a load's ``checks`` (its ``text`` ones: the scene file and its
-    ``extends:`` chain), which the scene's digest hashes and those checks do not tell (their text is in universal
-    newlines: a file saved with CRLF line ends is the same text, other bytes); None where one is not read."""
-    try:
-        return [hashlib.sha256(Path(c[1]).read_bytes()).hexdigest() for c in checks if c[0] == "text"]
-    except (OSError, TypeError, ValueError):
-        return None
-
-
-SCENE_KEY_FORMAT = "tlm-scene-key/1"  # the "tlm" field of a remembered scene fingerprint (scenes/key-<hash>.json)
-_DIGEST = re.compile("sha256 [0-9a-f]{16}")  # (a scene digest of a scene file that loaded: scene_identity's)
-
-
-def _key_file(key: tuple) -> tuple[Path, list] | None:
-    """The file that remembers the fingerprint of the scene load ``key`` (a :func:`_scene_key` key) on disk,
-    with the key as JSON; None where the key is no JSON."""
-    try:
-        plain = json.loads(json.dumps([*key, parse_versions()]))  # (a parse's libraries: the mesh cache's too)
-    except (TypeError, ValueError):
-        return None
-    name = hashlib.sha256(json.dumps(plain).encode()).hexdigest()[:24]
-    return cache_root("scenes") / f"key-{name}.json", plain
-
-
-def _kept_key(key: tuple) -> tuple[str, list, str | None, list | None] | None:
-    """The fingerprint, checks, scene digest and its YAML files' bytes' sha256 (:func:`_yaml_bytes`) remembered on disk
-    for ``key`` (:func:`_keep_key`; the digest and bytes None where a tlm before them kept the entry, or either is
-    damaged: the files digested again), or None: none kept,
-    or one not read whole (its checks then run as a load's would: a damaged one costs a load, quietly)."""
-    found = _key_file(key)
-    if found is None:
-        return None
-    path, plain = found
-    try:
-        kept = json.loads(path.read_text(encoding="utf-8"))
-        if (not isinstance(kept, dict) or kept.get("tlm") != SCENE_KEY_FORMAT or kept.get("key") != plain
-                or not isinstance(kept.get("fingerprint"), str) or not isinstance(kept.get("checks"), list)
-                or not all(isinstance(c, list) and c and c[0] in TELLS for c in kept["checks"])):
-            return None
-    except (OSError, ValueError):
-        return None
-    if writable():  # (not inside tlm.scenes.cache.read_only: a dry run)
-        note_use(path)  # (tlm cache prune keeps the fingerprints in use)
-    digest, digested = kept.get("digest"), kept.get("digested")  # (either damaged or not there: digested again)
-    if not (isinstance(digest, str) and _DIGEST.fullmatch(digest) and isinstance(digested, list)
-            and all(isinstance(d, str) for d in digested)):
-        digest = digested = None
-    return kept["fingerprint"], kept["checks"], digest, digested
-
-
-def _keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = None,
-              digested: list | None = None) -> None:
-    """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` (and the scene's ``digest``, its
-    ``scene_digest``) on disk (speed only: a cache
-    that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run). A
-    folder where the file should be is a damaged entry (:func:`_kept_key` read none): removed, the file written."""
-    found = _key_file(key) if writable() else None
-    if found is None:
-        return
-    path, plain = found
-    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks, "digest": digest,
-            "digested": digested}  # (the sha256 of the bytes of its YAML files that digest is of: _yaml_bytes)
-    try:
-        text = json.dumps(body)
-    except (TypeError, ValueError):
-        return
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if path.is_dir() and not path.is_symlink():  # (not the whole cache that cannot be written: this entry)
-            remove_entry(path, path.parent)
-        with write_atomic(path) as f:
-            f.write(text)
-    except OSError as e:  # (said once, as any failed write into a cache: its folder's mkdir's too)
-        cache_write_failed(path, e)
-    else:
-        cache_written(path)
 
 
 def is_cached(key: str) -> bool:
@@ -369,8 +181,8 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     Both files are written atomically, so concurrent renders of one key (two processes of a
     sweep) leave one whole entry; a write that fails (a full disk, a read-only cache) costs
     speed only, and leaves no ``.npz`` without its sidecar. Its ``scene_digest`` is that of the scene
-    files the key was computed from (:func:`_scene_key`), a frame read from the cache too: this config's
-    files as this process read them, not those of whoever rendered the frame first.
+    files the key was computed from (:func:`~tlm.experiments.frame_keys.scene_key_loaded`), a frame read from the cache
+    too: this config's files as this process read them, not those of whoever rendered the frame first.
     """
     timer = Timer()
     key, scene, digest = _keyed(cfg, base, source, timer)  # (the scene, when the key loaded it: rendered from it)
@@ -510,8 +322,8 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
     """``got``, a cached frame, with its summary's ``scene.source`` the file this config names,
     and its warnings naming this copy's files: the key holds the scene's content, its file's
-    name and its notes' paths relative to its folder (:func:`scene_fingerprint`), not where it lies,
-    so the same project in another folder shares the frame (a mesh outside the scene's folder,
+    name and its notes' paths relative to its folder (:func:`~tlm.experiments.frame_scenes.scene_fingerprint`), not
+    where it lies, so the same project in another folder shares the frame (a mesh outside the scene's folder,
     ``../m/x.obj``, too), and its results name its own files (:func:`~tlm.experiments.frame_scenes.moved_line`)."""
     held = got.summary.get("scene")
     if not isinstance(held, dict) or not isinstance(held.get("source"), str):
