@@ -58,11 +58,19 @@ def _words(html: str) -> str:
 # ------------------------------------------------------------------ 1: the summary reads §3's fits
 
 
-def test_the_summary_says_how_a_sweep_over_pipelines_scales(sweeps, tmp_path):
+def test_the_summary_says_how_a_sweep_over_pipelines_scales(sweeps, tmp_path, monkeypatch):
     inputs = read([sweeps / "n"])
     sec = scaling_section(inputs, tmp_path)
     assert sec.figures and not sec.absent
+    import tlm.report.summary as summary
+
+    drawn = {}
+    save = summary.save
+    monkeypatch.setattr(summary, "save", lambda fig, out, name, *a, **k: (
+        drawn.setdefault(name, [ax.get_ylabel() for ax in fig.axes]), save(fig, out, name, *a, **k))[1])
     lead = _words(summary_section(inputs, tmp_path).lead)
+    # (its curves are the static scheduler's unless one names another: the axis says so, h484)
+    assert drawn["summary_scaling.png"] == ["speed-up of TThru (static tiles unless named)"]
     assert "No eq. 5.2" not in lead
     said = re.search(r"Does it scale: cornell (\d+\.\d)x at N = 4 ", lead)
     assert said, lead

@@ -338,7 +338,7 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_xscale("log", base=2)
     ax.set_yscale("log", base=2)
     ax.set_xlabel("pipelines N")
-    ax.set_ylabel("speed-up of TThru")
+    ax.set_ylabel("speed-up of TThru (static tiles unless named)")
     caption = "speed-up of the throughput with the static scheduler; grey: the ideal N"
     if len(curves) > SCALING_LINES:  # (the legend under the plot, its labels wrapped: legend_under)
         legend_under(fig, ax, *SIZE)
