@@ -12,35 +12,9 @@ the refusal. Each runs in a fresh interpreter with a timeout: the hazard is a ha
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-import signal
-import subprocess
-import sys
-import textwrap
-from pathlib import Path
-
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-
-needs_fork = pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork here")
-
-
-def _run(script: str, timeout: float = 60, **env: str) -> subprocess.CompletedProcess:
-    """``script`` in a fresh interpreter; a hang fails the test (its process group killed: its workers too)."""
-    environ = {k: v for k, v in os.environ.items() if k != "TLM_FORK_WORKERS"}
-    proc = subprocess.Popen([sys.executable, "-c", textwrap.dedent(script)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=REPO,
-                            env={**environ, "PYTHONPATH": str(REPO), **env}, start_new_session=True)
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, err = proc.communicate()
-        pytest.fail(f"waited for ever (killed after {timeout} s): {out!r} {err!r}")
-    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
-
+from tests.test_threads_forked_h480 import _run, needs_fork  # (a fresh interpreter, a hang killed; fork or skip)
 
 STOPPED_EARLY = """
     import contextlib, multiprocessing

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import yaml
 
+from tests.test_sweep_report_h491 import _axis, _shown  # (a factor's figure drawn, its ticks)
 from tlm.experiments.sweep_file import load_sweep
 from tlm.report.collect import Inputs, Sweep
 from tlm.report.summary_effects import sweep_findings
-from tlm.report.sweeps import factor_figure
 
 
 def test_a_section_factor_that_sets_only_the_exposure_is_said_to_change_nothing(tmp_path, monkeypatch):
@@ -61,20 +61,6 @@ def test_tied_points_of_one_error_are_not_said_to_be_told_apart_by_it():
     text = _finding({"a": [1, 2, 3]}, lambda a: 1.0 if a == 2 else 5.0, lambda a: 0.05 if a != 2 else 0.01)
     assert text.endswith("the fastest points, tied at 5 FPS (relative MSE 0.05), are a = 1 and a = 3; the point of "
                          "the lowest image error (relative MSE 0.01) is a = 2 at 1 FPS."), text
-
-
-def _axis(monkeypatch, sw: Sweep, factor: str):
-    figs = []
-    monkeypatch.setattr("tlm.report.sweeps.save", lambda fig, *a, **k: figs.append(fig))
-    factor_figure(sw, factor, Path("unused"), [])
-    (fig,) = figs
-    fig.canvas.draw()
-    return fig.axes[0]
-
-
-def _shown(ax) -> list[str]:
-    lo, hi = ax.get_xlim()
-    return [t.get_text() for t in ax.get_xticklabels() if lo <= t.get_position()[0] <= hi and t.get_text()]
 
 
 def test_evenly_spaced_values_spanning_10x_keep_a_linear_axis_those_spaced_by_ratios_a_log_one(monkeypatch):
