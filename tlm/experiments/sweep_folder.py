@@ -46,7 +46,7 @@ def drop_report(out: Path, current: bool = False) -> str | None:
     swapped in meanwhile is half removed), then removed. A ``report`` of anything else (a user's folder, a link, a
     file) is left alone. The warning line where it could not be removed (the folder not writable); else None."""
     report = out / REPORT
-    if not _report_there(report) or (current and _after_rows(out, report)):
+    if not report_goes(out, current):
         return None
     aside = out / f".{REPORT}.old-{storage._writer()}"  # (a killed sweep's: removed by the next report's writer)
     storage._hold(aside.name)
@@ -61,6 +61,14 @@ def drop_report(out: Path, current: bool = False) -> str | None:
         shutil.rmtree(aside, ignore_errors=True)
         storage._release(aside.name)
     return None
+
+
+def report_goes(out: Path, current: bool = False) -> bool:
+    """Whether a sweep that claims the folder ``out`` removes its report there (:func:`drop_report`'s rule, which
+    ``tlm sweep --dry-run`` tells too: :func:`~tlm.experiments.sweep_plan.plan`): a report's folder is there and it
+    is not of the rows the sweep leaves (``current``, and written after ``sweep.jsonl``)."""
+    report = out / REPORT
+    return _report_there(report) and not (current and _after_rows(out, report))
 
 
 def _after_rows(out: Path, report: Path) -> bool:
@@ -180,7 +188,7 @@ def _why(then: dict, sweep, folders: list[Path], code: str | None) -> str | None
         from tlm.fingerprint import code_fingerprint
 
         code = code_fingerprint()
-    codes = sorted({c for f in folders if (c := _code_of(f)) is not None})
+    codes = sorted({c for f in folders if (c := code_of(f)) is not None})
     old_code = bool(codes) and code not in codes
     was = (f"other tlm code (code_fingerprint {listing(codes, named=SHOWN, last='or')} in their results.json, "
            f"this tlm's {code})")
@@ -196,7 +204,29 @@ def _why(then: dict, sweep, folders: list[Path], code: str | None) -> str | None
     return None  # (the code or an input file, untold: the line says what may have left them)
 
 
-def _code_of(folder: Path) -> str | None:
+def code_said(folders: list[Path], code: str, whose: str) -> str | None:
+    """What the point ``folders`` an earlier run into a sweep's folder left are, told by their ``results.json``'s
+    ``code_fingerprint`` alone (where no earlier ``sweep.yaml`` names them: ``tlm report``'s note, the folder's
+    holding the latest sweep's only), against ``code``, that of ``whose`` points (``"this sweep's"``): of other
+    tlm code, or of the same (so of another config, a different ``--set`` or an edited input file), or some of
+    each; None where a folder's code is not told (no ``results.json``: a point that failed, or unreadable)."""
+    codes = [code_of(f) for f in folders]
+    if not codes or None in codes:
+        return None
+    other = sorted({c for c in codes if c != code})
+    was = (f"other tlm code (code_fingerprint {listing(other, named=SHOWN, last='or')} in "
+           f"{'their' if len(codes) != 1 else 'its'} results.json, {whose} {code})")
+    same = "another config, a different --set or an edited input file"
+    if not other:
+        return f"{whose} tlm code (code_fingerprint {code} in {'their' if len(codes) != 1 else 'its'} " \
+               f"results.json), so of {same}"
+    if code not in codes:
+        return was
+    n = codes.count(code)
+    return f"{was}: {len(codes) - n} of them; {n} more of {whose} tlm code, so of {same}"
+
+
+def code_of(folder: Path) -> str | None:
     """The ``code_fingerprint`` of the point's ``results.json`` in ``folder`` (None: none, or unreadable)."""
     try:
         code = json.loads((folder / "results.json").read_bytes()).get("code_fingerprint")

@@ -9,8 +9,9 @@ their frame does not read share one) and which of them the functional cache hold
 (:func:`~tlm.experiments.frames.is_cached`, as the sweep's dispatch asks it), the stale folders a sweep into
 the folder removes (a killed sweep's temporary point folders, row files and held references; a failed or
 unfinished point's folder, run again; one done without the trace.json it asks for, ``arch.trace``, is run
-again and kept until its new folder replaces it) and
-those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
+again and kept until its new folder replaces it; the folder's earlier report,
+:func:`~tlm.experiments.sweep_folder.report_goes`) and those it warns of
+(:func:`~tlm.experiments.sweep_folder.other_folders`),
 the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
 :meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`, ``render.threads`` and ``--jobs`` past the CPUs available:
 :mod:`tlm.experiments.run_warnings`); with ``reference`` (``--reference``), the photon-map
@@ -85,6 +86,7 @@ class SweepPlan:
     remote: bool = False  # a remote Dask scheduler: its workers' caches, not this machine's, decide the renders
     untraced: int = 0  # of ``kept``: points done without the trace.json they now ask for (arch.trace: true)
     kept: int = 0  # point folders of finished points run again (their trace.json, --reference): kept until replaced
+    report_removed: bool = False  # ``out``'s earlier report/, which the sweep removes as it claims the folder
 
     @property
     def renders(self) -> int:
@@ -99,7 +101,8 @@ class SweepPlan:
                 "done": self.done, "to_run": self.to_run, "measured_again": self.measured_again,
                 "frames": self.frames, "frames_cached": self.frames_cached, "renders": self.renders,
                 "replaced": self.replaced, "kept": self.kept, "untraced": self.untraced, "stale": self.stale,
-                "other_folders": self.other_folders, "references": refs, "remote": self.remote,
+                "other_folders": self.other_folders, "report_removed": self.report_removed, "references": refs,
+                "remote": self.remote,
                 "warnings": list(self.warnings)}
 
     def lines(self) -> list[str]:
@@ -135,6 +138,9 @@ class SweepPlan:
         if self.stale:
             what = "folder or file" if self.stale == 1 else "folders or files"
             lines.append(f"  {self.stale} temporary {what} of killed sweeps in {self.out}: removed")
+        if self.report_removed:  # (sweep_folder.drop_report's: not of the rows the sweep leaves)
+            lines.append(f"  {self.out / 'report'}: the report of the folder's earlier sweep, removed as the sweep "
+                         "claims the folder (its own is written after its points, unless --no-report)")
         if self.other_folders:
             lines.append(f"  {n(self.other_folders, 'point folder')} not this sweep's: kept (a warning says so)")
         return lines
@@ -184,7 +190,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     ``render.threads`` past them (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`)."""
     from tlm.experiments.frames import is_cached
     from tlm.experiments.run_warnings import sweep_jobs_line, sweep_threads_line
-    from tlm.experiments.sweep_folder import earlier_sweep, other_folders, other_folders_line
+    from tlm.experiments.sweep_folder import earlier_sweep, other_folders, other_folders_line, report_goes
 
     out = Path(out)
     points_dir = out / "points"
@@ -210,13 +216,15 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     replaced, kept = sum(not e for e in ended.values()), sum(ended.values())
     frames = {by_hash[h][0].functional for h in run}
     cached = sum(is_cached(k) for k in frames)
-    other = other_folders(points_dir, by_hash)
+    other, earlier = other_folders(points_dir, by_hash), earlier_sweep(out)
     if other:
-        warnings.append(other_folders_line(other, points_dir, earlier_sweep(out), sweep))  # (what changed since)
+        warnings.append(other_folders_line(other, points_dir, earlier, sweep))  # (what changed since)
+    # (its earlier report: removed as the sweep claims the folder, but where it is of the rows it leaves, as run_sweep)
+    gone = report_goes(out, current=not run and earlier is not None and earlier.text == sweep.marker())
     count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)
     return SweepPlan(sweep.path, out, len(sweep.points), count(set(by_hash) - run), count(run),
                      count(again or ()), len(frames), cached, replaced, _stale(out), other, references,
-                     warnings, remote, untraced, kept)
+                     warnings, remote, untraced, kept, gone)
 
 
 def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Reference], set[str], list[str]]:

@@ -584,12 +584,25 @@ def other_point_folders(sw: Sweep) -> int:
     return sum(not n.startswith(".") and n not in planned for n in names)
 
 
-def other_folders_text(n: int, points: Path) -> str:
-    """What a sweep's ``points/`` holding ``n`` folders of no point of it means (the report's
-    note, and ``tlm sweep``'s line after its points)."""
+def other_folders_text(n: int, points: Path, sw: Sweep | None = None) -> str:
+    """What a sweep's ``points/`` holding ``n`` folders of no point of it means (the report's note). The folder's
+    ``sweep.yaml`` is the sweep's own (an earlier sweep's, which ``tlm sweep``'s line compares, is gone), so what
+    the folders are is told by their code alone, as :func:`~tlm.experiments.sweep_folder.code_said` tells it: the
+    ``code_fingerprint`` in their ``results.json`` against that of the sweep ``sw``'s points; where it cannot be
+    told (a point of theirs failed, ``sw``'s points ran no code told, or more than one), what may have left them."""
+    from tlm.experiments.sweep_folder import code_said, other_names
+
+    said = None
+    if sw is not None:
+        codes = {c for r in sw.runs if isinstance(c := r.results.get("code_fingerprint"), str)}
+        planned = {str(p.get("hash")) for p in sw.spec.get("points") or [] if isinstance(p, dict)}
+        names = other_names(sw.path / "points", planned or {str(r.get("hash")) for r in sw.rows})
+        if len(codes) == 1 and len(names) == n:
+            said = code_said([sw.path / "points" / name for name in names], codes.pop(), "this sweep's")
+    said = said or ("other tlm code, another config or a different --set (an edit under tlm/ or to an input file "
+                    "changes every point's hash)")
     return (f"{n} point folder{'s' if n != 1 else ''} in {points} {'are' if n != 1 else 'is'} not "
-            "this sweep's: left by an earlier run into the folder of other tlm code, another config or a different "
-            "--set (an edit under tlm/ or to an input file changes every point's hash); nothing reads "
+            f"this sweep's: left by an earlier run into the folder of {said}; nothing reads "
             f"{'them' if n != 1 else 'it'}, and removing {'them' if n != 1 else 'it'} changes no result "
             "(sweep.yaml lists this sweep's hashes)")
 
@@ -608,11 +621,12 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         desc = described(sw)
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         other = other_point_folders(sw)
-        stale = f" {other_folders_text(other, _shown_folder(sw) / 'points')}." if other else ""
+        said = other_folders_text(other, _shown_folder(sw) / "points", sw) if other else ""  # (read once)
+        stale = f" {said}." if other else ""
         html.append(f"<h3>{esc(sw.label)}</h3><p>{esc(desc or '')} {count(len(sw.rows), 'point')}, "
                     f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.{esc(stale)}</p>")
         if other:
-            sec.notes.append(f"{sw.label}: {other_folders_text(other, _shown_folder(sw) / 'points')}")
+            sec.notes.append(f"{sw.label}: {said}")
         if sw.unfinished:
             sec.notes.append(f"{sw.label}: {len(sw.rows)} of its {sw.planned} points have a row: the figures "
                              "show those only")
