@@ -98,12 +98,13 @@ def own_runs(found: list[tuple[Path, str]], said: list[str], named: list[int]) -
 
     own, kinds = [], {}  # (each study's kind, looked for once: a search may find thousands of run folders)
     for folder, kind in found:
-        study = folder.parent.parent
+        at = Path(os.path.abspath(folder))  # (not folder's pure parents: ``tlm report .`` in T/cornell finds ``pmap``)
+        study = at.parent.parent
         of = (kinds[study] if study in kinds else kinds.setdefault(study, kind_of(study))) if kind == "run" else None
-        what = ("a thesis cell" if of == "thesis" and folder.name in MODES else
-                "an extreme case" if of == "extreme" and folder.parent.name == "cases" else None)
+        what = ("a thesis cell" if of == "thesis" and at.name in MODES else
+                "an extreme case" if of == "extreme" and at.parent.name == "cases" else None)
         names = listed(study) if what is not None else None
-        rel = f"{folder.parent.name}/{folder.name}/results.json"
+        rel = f"{at.parent.name}/{at.name}/results.json"
         if names is not None and rel not in names and not moved(study, rel, names):
             said.append(left_out(folder, what, study))
             named.append(1)
