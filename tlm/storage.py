@@ -82,9 +82,12 @@ from tlm.storage_live import (  # noqa: F401  (re-exported)
     _release,
     _thread_tag,
     _writer,
+    hold,
     left_by_the_gone,
+    new_writer,
     pid_alive,
     process_tag,
+    release,
 )
 from tlm.storage_lock import _host, folder_lock  # (_host: storage._host, tlm.claims's; _left_by_the_gone asks it)
 from tlm.storage_swap import mounted as _mounted

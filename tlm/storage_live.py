@@ -102,6 +102,11 @@ def _release(name: str) -> None:
         _LIVE.discard(name)
 
 
+# (the public names of the three above, for a writer's own temporary folder outside tlm.storage: a sweep's report set
+# aside, tlm.experiments.sweep_folder; its references' held folder, tlm.experiments.sweep_reference)
+new_writer, hold, release = _writer, _hold, _release
+
+
 def _forget_live() -> None:
     """In a forked child: the parent's folders carry the parent's pid, and its locks may be held."""
     global _LIVE_LOCK

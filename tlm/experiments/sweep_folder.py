@@ -48,8 +48,8 @@ def drop_report(out: Path, current: bool = False) -> str | None:
     report = out / REPORT
     if not report_goes(out, current):
         return None
-    aside = out / f".{REPORT}.old-{storage._writer()}"  # (a killed sweep's: removed by the next report's writer)
-    storage._hold(aside.name)
+    aside = out / f".{REPORT}.old-{storage.new_writer()}"  # (a killed sweep's: removed by the next report's writer)
+    storage.hold(aside.name)
     try:
         with storage.folder_lock(report):
             if _report_there(report):
@@ -59,7 +59,7 @@ def drop_report(out: Path, current: bool = False) -> str | None:
                 f"removed ({e.strerror or e}); write this sweep's with: tlm report {out}")
     finally:
         shutil.rmtree(aside, ignore_errors=True)
-        storage._release(aside.name)
+        storage.release(aside.name)
     return None
 
 

@@ -308,8 +308,8 @@ def held_root(out: Path) -> Path:
     removal can be registered first."""
     from tlm import storage
 
-    root = Path(os.path.abspath(out / HELD)) / f".held.tmp-{storage._writer()}"
-    storage._hold(root.name)  # (before it exists: no clean_stale of another thread's may take it for a leftover)
+    root = Path(os.path.abspath(out / HELD)) / f".held.tmp-{storage.new_writer()}"
+    storage.hold(root.name)  # (before it exists: no clean_stale of another thread's may take it for a leftover)
     return root
 
 
@@ -379,7 +379,7 @@ def drop_references(root: Path) -> None:
     from tlm import storage
 
     shutil.rmtree(root, ignore_errors=True)
-    storage._release(root.name)
+    storage.release(root.name)
     with suppress(OSError):
         root.parent.rmdir()
 
