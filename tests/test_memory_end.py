@@ -21,19 +21,25 @@ from .test_faults import CORNELL, SMALL
 
 REPO = Path(__file__).resolve().parents[1]
 
-SCRIPT = textwrap.dedent("""
-    import sys, threading
-    from concurrent.futures import ThreadPoolExecutor
-    import tlm.cli_signals
-    from tlm import api, cli
-    pool = ThreadPoolExecutor(1)
-    pool.submit(threading.Event().wait)  # (a worker that never ends: the interpreter's exit would join it)
-    def run(*args, **kwargs):
-        raise MemoryError("Unable to allocate 1.00 GiB for an array with shape (134217728,) and data type float64")
-    api.run = run
-    sys.argv = ["tlm", *sys.argv[1:]]
-    sys.exit(cli.main())
-""")
+def ending(raised: str) -> str:
+    """A ``tlm`` command line whose ``api.run`` raises ``raised`` (an expression) while a pool's call never ends
+    (a worker the interpreter's exit would join: a wait for ever, unless the command ends before that join)."""
+    return textwrap.dedent("""
+        import sys, threading
+        from concurrent.futures import ThreadPoolExecutor
+        import tlm.cli_signals
+        from tlm import api, cli
+        pool = ThreadPoolExecutor(1)
+        pool.submit(threading.Event().wait)  # (a worker that never ends: the interpreter's exit would join it)
+        def run(*args, **kwargs):
+            raise RAISED
+        api.run = run
+        sys.argv = ["tlm", *sys.argv[1:]]
+        sys.exit(cli.main())
+    """).replace("RAISED", raised)
+
+
+SCRIPT = ending('MemoryError("Unable to allocate 1.00 GiB for an array with shape (134217728,) and data type float64")')
 
 
 def test_a_run_out_of_memory_ends_with_its_line_and_joins_no_thread(tmp_path):

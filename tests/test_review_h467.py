@@ -15,6 +15,8 @@ import pytest
 
 from tlm.kernels import threads
 
+from .test_memory_end import ending
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -67,19 +69,7 @@ def test_a_pool_whose_threads_all_ended_is_not_used_again(tmp_path):
     assert proc.stdout.splitlines() == ["raised: no memory to set the outcome"] * 2 + ["then: 2"], proc.stdout
 
 
-NO_THREAD = textwrap.dedent("""
-    import sys, threading
-    from concurrent.futures import ThreadPoolExecutor
-    import tlm.cli_signals
-    from tlm import api, cli
-    pool = ThreadPoolExecutor(1)
-    pool.submit(threading.Event().wait)  # (a call still in flight: the interpreter's exit would join it)
-    def run(*args, **kwargs):
-        raise RuntimeError("can't start new thread")
-    api.run = run
-    sys.argv = ["tlm", *sys.argv[1:]]
-    sys.exit(cli.main())
-""")
+NO_THREAD = ending('RuntimeError("can\'t start new thread")')  # (a call still in flight, as out of memory)
 
 
 def test_a_run_that_could_start_no_thread_ends_with_its_line_and_joins_no_thread(tmp_path):
