@@ -239,9 +239,9 @@ def memory_problem(e: BaseException | None) -> str | None:
         (isinstance(c, (ImportError, OSError)) and UNMAPPED in str(c)) or type(c).__name__ == BROKEN_POOL))), None)
     if e is None:
         return None
-    if type(e).__name__ == BROKEN_POOL:  # (its own words name no memory: a worker "terminated abruptly")
-        e = MemoryError(f"a forked worker process ended abruptly ({' '.join(str(e).split())})")
     text = " ".join(str(e).split())
+    if type(e).__name__ == BROKEN_POOL:  # (its own words name no memory: a worker "terminated abruptly")
+        text = f"a forked worker process ended abruptly ({text})"
     line = f"out of memory: {text}" if text else "out of memory"
     if limit is not None:
         line += f" (the address space of this process is limited to {limit / 2**20:.0f} MiB: ulimit -v)"

@@ -32,13 +32,13 @@ from tlm.scenes.model import Scene
 
 def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = None,
                timer: Timer | None = None, bar=None, scene: Scene | None = None,
-               check_photons: bool | str = False) -> Frame:
+               check_photons: str | None = None) -> Frame:
     """``cfg``'s scene (relative paths from ``base``; ``source`` names the config in an
     InputError), its BSP (``bsp.levels``, ``bsp.memory_factor``) and the frame the passes
     render. ``timer``: gets the stages ``load_scene`` and ``build_bsp``; ``bar``: a
     progress bar whose description names the BSP build while it runs; ``scene``: the
     scene when the caller loaded it already (to look up a cache before building). A pmap run that nothing gives
-    photons is an InputError once the scene is loaded, before its BSP, with ``check_photons`` (True or ``"run"``: a
+    photons is an InputError once the scene is loaded, before its BSP, with ``check_photons`` (``"run"``: a
     run's; ``"reference"``: a reference's of no photons, its own line; :func:`check_photons_given`; not an
     error-vs-cost study's base, whose points give the count)."""
     timer = Timer() if timer is None else timer
@@ -46,7 +46,7 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
         with timer.stage("load_scene"):
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
     if check_photons:  # (a pmap run that nothing gives photons: before the BSP; h474)
-        check_photons_given(scene, cfg, source, "reference" if check_photons == "reference" else "run")
+        check_photons_given(scene, cfg, source, check_photons)
     if bar is not None:
         bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)

@@ -593,7 +593,7 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
                          ", or use --force to compute it again)"))
             return Made(key, settings, cached[1], False, cache_dir() / key, line, cached[0])
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
-    frame = load_frame(cfg, scene=scene, check_photons=not settings.photons and "reference")  # (none: refused)
+    frame = load_frame(cfg, scene=scene, check_photons=None if settings.photons else "reference")  # (none: refused)
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
         f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
     image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar, key=key, say=say)

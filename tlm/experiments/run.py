@@ -220,7 +220,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
         timer = Timer() if timer is None else timer
         with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar, \
                 noting_reads() as reads:
-            frame = load_frame(cfg, base, config_source, timer, bar, scene=scene, check_photons=True)
+            frame = load_frame(cfg, base, config_source, timer, bar, scene=scene, check_photons="run")
         digest = None
         if scene is None and frame.scene.source:  # (of the load's stage: its files' digests, most of them reused)
             with timer.stage("load_scene"):

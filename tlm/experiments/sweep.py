@@ -110,7 +110,7 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.run_warnings import sweep_jobs_line
 from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
-from tlm.experiments.sweep_folder import drop_report, earlier_sweep, other_folders, other_folders_line, rows_dated
+from tlm.experiments.sweep_folder import drop_report, earlier_sweep, other_folders_line, other_names, rows_dated
 from tlm.experiments.sweep_point import (
     MARKER,
     Task,
@@ -327,8 +327,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 # (an earlier report, not of the rows from now on, as tlm run's goes; one of them kept)
                 gone = drop_report(out, current=not todo and earlier is not None and earlier.text == marker)
                 said += [gone] if gone else []
-                for line in [gone] if gone and warn is not None else ():
-                    warn(line)
+                if gone and warn is not None:
+                    warn(gone)
                 points_dir.mkdir(parents=True, exist_ok=True)
                 forget_worker_events(out, sweep.identity())  # (those of another sweep into the folder before)
                 _clean_stale(points_dir)
@@ -392,8 +392,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         # (a given render.threads past a Dask machine's CPUs at its points at once, or a remote one's alone: once per
         # machine, as its points said it)
         machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
-        other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
-        stale = [other_folders_line(other, points_dir, earlier, sweep, provenance["code_fingerprint"])] if other else []
+        names = other_names(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
+        other = len(names)
+        stale = [other_folders_line(other, points_dir, earlier, sweep, provenance["code_fingerprint"], names)
+                 ] if other else []
         if warn is not None:
             for line in [*machines, *unread, *caches, *stale]:
                 if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)

@@ -145,8 +145,8 @@ def same_setting(points: list, src: str) -> None:
 
 # a factor whose null the run resolves from its scene (the BSP's depth, the photons), which no point's config holds
 # before it runs: where results.json records it, and the words of what null is
-RESOLVED_NULLS = {"bsp.levels": (("scene", "bsp", "requested_levels"), "floor(ln n) of the scene's {} triangles"),
-                  "photons.count": (("scene", "photons"), "the scene's own count")}
+RESOLVED_NULLS = {"bsp.levels": ("scene.bsp.requested_levels", "floor(ln n) of the scene's {} triangles"),
+                  "photons.count": ("scene.photons", "the scene's own count")}
 
 
 def resolved_nulls(path: Any, factors: list[str], done: list[tuple[Any, dict]], skip: set[str]) -> list[str]:
@@ -165,9 +165,7 @@ def resolved_nulls(path: Any, factors: list[str], done: list[tuple[Any, dict]], 
             value = point.factors.get(factor)
             given.setdefault(rest, {}).setdefault(value_identity(value), point)
             if value is None:
-                got: Any = results
-                for part in where:
-                    got = got.get(part) if isinstance(got, dict) else None
+                got = resolved_value(results, where)  # (a missing key: an object, not an int)
                 if isinstance(got, int) and not isinstance(got, bool):
                     nulls.append((rest, point, got, ((results.get("scene") or {}).get("triangles"))))
         pairs = [(point, given[rest][value_identity(got)], got, n) for rest, point, got, n in nulls

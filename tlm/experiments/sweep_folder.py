@@ -1,6 +1,6 @@
 """What a sweep finds in its folder from before it (out of :mod:`tlm.experiments.sweep`): the report of an earlier
 sweep (``OUT/report``), which it removes as it claims the folder (:func:`drop_report`), and the point folders that
-are not its own, which it counts and says what they are (:func:`other_folders`, :func:`other_folders_line`): where
+are not its own, which it counts and says what they are (:func:`other_names`, :func:`other_folders_line`): where
 the folder's sweep before this one (its ``sweep.yaml`` as found, :func:`earlier_sweep`) names them, what changed
 since (a factor's values then and now, a ``set`` key's, the ``--set`` strings, the base's), or that only tlm's
 code did (the ``code_fingerprint`` their ``results.json`` hold); else what may have left them.
@@ -145,16 +145,12 @@ def other_names(points_dir: Path, hashes) -> list[str]:
     return sorted(n for n in names if not n.startswith(".") and n not in hashes)
 
 
-def other_folders(points_dir: Path, hashes) -> int:
-    """How many :func:`other_names` there are: those an earlier run into the folder left, of other tlm code,
-    another config or a different ``--set`` (a point's hash holds the code's fingerprint, its resolved config,
-    the ``--set`` values included, and its input files' content)."""
-    return len(other_names(points_dir, hashes))
-
-
 def other_folders_line(n: int, points_dir: Path, earlier: Earlier | None = None, sweep=None,
-                       code: str | None = None) -> str:
-    """The line that says what the ``n`` folders of :func:`other_folders` are. Given the folder's ``earlier``
+                       code: str | None = None, names: list[str] | None = None) -> str:
+    """The line that says what the ``n`` folders of :func:`other_names` are (``names``, where the caller listed
+    them: those an earlier run into the folder left, of other tlm code, another config or a different ``--set``: a
+    point's hash holds the code's fingerprint, its resolved config, the ``--set`` values included, and its input
+    files' content). Given the folder's ``earlier``
     sweep (:func:`earlier_sweep`), this ``sweep`` (a :class:`~tlm.experiments.sweep_file.Sweep`) and tlm's
     ``code`` fingerprint (None: this process's): of those that are the earlier sweep's points, what changed since
     (:func:`changes`), or that only tlm's code did (their ``results.json``'s ``code_fingerprint``, not this one's);
@@ -165,7 +161,10 @@ def other_folders_line(n: int, points_dir: Path, earlier: Earlier | None = None,
     generic = ("of other tlm code, another config or a different --set (an edit under tlm/ or to an input file "
                "changes every point's hash)")
     then = earlier.head() if earlier is not None and sweep is not None else None
-    names = other_names(points_dir, {p.hash for p in sweep.points}) if then is not None else []
+    if then is None:
+        names = []
+    elif names is None:
+        names = other_names(points_dir, {p.hash for p in sweep.points})
     hashes = earlier.hashes() if then is not None else set()
     ours = [name for name in names if name in hashes]
     said = _why(then, sweep, [points_dir / name for name in ours], code) if ours else None

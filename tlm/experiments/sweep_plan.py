@@ -11,7 +11,7 @@ the folder removes (a killed sweep's temporary point folders, row files and held
 unfinished point's folder, run again; one done without the trace.json it asks for, ``arch.trace``, is run
 again and kept until its new folder replaces it; the folder's earlier report,
 :func:`~tlm.experiments.sweep_folder.report_goes`) and those it warns of
-(:func:`~tlm.experiments.sweep_folder.other_folders`),
+(:func:`~tlm.experiments.sweep_folder.other_names`),
 the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
 :meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`, ``render.threads`` and ``--jobs`` past the CPUs available:
 :mod:`tlm.experiments.run_warnings`); with ``reference`` (``--reference``), the photon-map
@@ -190,7 +190,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     ``render.threads`` past them (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`)."""
     from tlm.experiments.frames import is_cached
     from tlm.experiments.run_warnings import sweep_jobs_line, sweep_threads_line
-    from tlm.experiments.sweep_folder import earlier_sweep, other_folders, other_folders_line, report_goes
+    from tlm.experiments.sweep_folder import earlier_sweep, other_folders_line, other_names, report_goes
 
     out = Path(out)
     points_dir = out / "points"
@@ -216,9 +216,10 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False,
     replaced, kept = sum(not e for e in ended.values()), sum(ended.values())
     frames = {by_hash[h][0].functional for h in run}
     cached = sum(is_cached(k) for k in frames)
-    other, earlier = other_folders(points_dir, by_hash), earlier_sweep(out)
+    names, earlier = other_names(points_dir, by_hash), earlier_sweep(out)
+    other = len(names)
     if other:
-        warnings.append(other_folders_line(other, points_dir, earlier, sweep))  # (what changed since)
+        warnings.append(other_folders_line(other, points_dir, earlier, sweep, names=names))  # (what changed since)
     # (its earlier report: removed as the sweep claims the folder, but where it is of the rows it leaves, as run_sweep)
     gone = report_goes(out, current=not run and earlier is not None and earlier.text == sweep.marker())
     count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)

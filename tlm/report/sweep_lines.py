@@ -273,7 +273,7 @@ def factor_axis(ax, factor: str, xs: list) -> bool:
         log_ticks(ax, "x")
     elif log:  # (base 2's own labels are 2^k: the numbers instead)
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.0f}"))
-    elif whole and not log:  # (an integer factor: no 5.5 levels; one value alone ticked, not 6.64 to 7.36)
+    elif whole:  # (an integer factor: no 5.5 levels; one value alone ticked, not 6.64 to 7.36)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
     return log
 

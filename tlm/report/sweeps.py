@@ -570,34 +570,31 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
                 f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).{merged}")
 
 
-def other_point_folders(sw: Sweep) -> int:
+def other_point_folders(sw: Sweep) -> list[str]:
     """The folders in the sweep's ``points/`` that are not its points: those of an earlier run into
     the folder of other code or another config (a point's hash holds the code's fingerprint, the
-    resolved config and its input files' content), which a rerun leaves there. Names only (one
-    listing); the hidden temporary folders of a writer are not counted."""
+    resolved config and its input files' content), which a rerun leaves there
+    (:func:`~tlm.experiments.sweep_folder.other_names`: one listing, a writer's hidden temporary folders left out)."""
+    from tlm.experiments.sweep_folder import other_names
+
     planned = {str(p.get("hash")) for p in sw.spec.get("points") or [] if isinstance(p, dict)}
-    planned = planned or {str(r.get("hash")) for r in sw.rows}
-    try:
-        names = os.listdir(sw.path / "points")
-    except OSError:
-        return 0
-    return sum(not n.startswith(".") and n not in planned for n in names)
+    return other_names(sw.path / "points", planned or {str(r.get("hash")) for r in sw.rows})
 
 
-def other_folders_text(n: int, points: Path, sw: Sweep | None = None) -> str:
-    """What a sweep's ``points/`` holding ``n`` folders of no point of it means (the report's note). The folder's
-    ``sweep.yaml`` is the sweep's own (an earlier sweep's, which ``tlm sweep``'s line compares, is gone), so what
-    the folders are is told by their code alone, as :func:`~tlm.experiments.sweep_folder.code_said` tells it: the
-    ``code_fingerprint`` in their ``results.json`` against that of the sweep ``sw``'s points; where it cannot be
-    told (a point of theirs failed, ``sw``'s points ran no code told, or more than one), what may have left them."""
-    from tlm.experiments.sweep_folder import code_said, other_names
+def other_folders_text(names: list[str], points: Path, sw: Sweep | None = None) -> str:
+    """What a sweep's ``points/`` holding the folders ``names`` of no point of it means (the report's note). The
+    folder's ``sweep.yaml`` is the sweep's own (an earlier sweep's, which ``tlm sweep``'s line compares, is gone),
+    so what the folders are is told by their code alone, as :func:`~tlm.experiments.sweep_folder.code_said` tells
+    it: the ``code_fingerprint`` in their ``results.json`` against that of the sweep ``sw``'s points; where it
+    cannot be told (a point of theirs failed, ``sw``'s points ran no code told, or more than one), what may have
+    left them."""
+    from tlm.experiments.sweep_folder import code_said
 
+    n = len(names)
     said = None
     if sw is not None:
         codes = {c for r in sw.runs if isinstance(c := r.results.get("code_fingerprint"), str)}
-        planned = {str(p.get("hash")) for p in sw.spec.get("points") or [] if isinstance(p, dict)}
-        names = other_names(sw.path / "points", planned or {str(r.get("hash")) for r in sw.rows})
-        if len(codes) == 1 and len(names) == n:
+        if len(codes) == 1:
             said = code_said([sw.path / "points" / name for name in names], codes.pop(), "this sweep's")
     said = said or ("other tlm code, another config or a different --set (an edit under tlm/ or to an input file "
                     "changes every point's hash)")
@@ -621,7 +618,7 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         desc = described(sw)
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         other = other_point_folders(sw)
-        said = other_folders_text(other, _shown_folder(sw) / "points", sw) if other else ""  # (read once)
+        said = other_folders_text(other, _shown_folder(sw) / "points", sw) if other else ""  # (listed once)
         stale = f" {said}." if other else ""
         html.append(f"<h3>{esc(sw.label)}</h3><p>{esc(desc or '')} {count(len(sw.rows), 'point')}, "
                     f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.{esc(stale)}</p>")

@@ -59,11 +59,18 @@ def study_cells(folder: Path) -> tuple[list[Path], list[str]]:
     for results in sorted(folder.glob("*/*/results.json")):
         cell = results.parent
         rel = f"{cell.parent.name}/{cell.name}/results.json"
-        if names is None or rel in names or moved(folder, rel, names):
+        if wrote_run(folder, rel, names):
             cells.append(cell)
         else:
             notes.append(left_out(cell, "a thesis cell", folder))
     return cells, notes
+
+
+def wrote_run(study: Path, rel: str, names: dict | None) -> bool:
+    """Whether the study in ``study``, whose listing is ``names`` (None: it has none), wrote the run file ``rel``
+    (``<scene>/<mode>/results.json``): its listing names it, or names it where it was before a rename (:func:`moved`);
+    every one of a study with no listing."""
+    return names is None or rel in names or moved(study, rel, names)
 
 
 def moved(study: Path, rel: str, names: dict) -> bool:
@@ -96,16 +103,18 @@ def own_runs(found: list[tuple[Path, str]], said: list[str], named: list[int]) -
     from tlm.config import MODES
     from tlm.report.folders import kind_of
 
-    own, kinds = [], {}  # (each study's kind, looked for once: a search may find thousands of run folders)
+    own, studies = [], {}  # (each study's kind and listing, read once: a search may find thousands of run folders)
     for folder, kind in found:
         at = Path(os.path.abspath(folder))  # (not folder's pure parents: ``tlm report .`` in T/cornell finds ``pmap``)
         study = at.parent.parent
-        of = (kinds[study] if study in kinds else kinds.setdefault(study, kind_of(study))) if kind == "run" else None
+        if kind == "run" and study not in studies:
+            of = kind_of(study)
+            studies[study] = (of, listed(study) if of in ("thesis", "extreme") else None)
+        of, names = studies[study] if kind == "run" else (None, None)
         what = ("a thesis cell" if of == "thesis" and at.name in MODES else
                 "an extreme case" if of == "extreme" and at.parent.name == "cases" else None)
-        names = listed(study) if what is not None else None
         rel = f"{at.parent.name}/{at.name}/results.json"
-        if names is not None and rel not in names and not moved(study, rel, names):
+        if what is not None and not wrote_run(study, rel, names):
             said.append(left_out(folder, what, study))
             named.append(1)
         else:
