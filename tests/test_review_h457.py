@@ -75,7 +75,7 @@ def test_a_signal_during_the_reference_step_says_what_the_folder_keeps(tmp_path,
 
 def test_a_signal_after_every_row_is_written_says_so(tmp_path, monkeypatch, capsys):
     path, out = sweep_file(tmp_path, n=3), tmp_path / "o"
-    _signal_in(monkeypatch, "other_folders")  # (the sweep's summary, after its rows)
+    _signal_in(monkeypatch, "other_names")  # (the sweep's summary, after its rows)
     assert _sweep(path, out) == 130
     assert tlm_lines(capsys.readouterr().err, out, 3) == [
         f"tlm: interrupted with all 3 points finished and kept in {out}"]
