@@ -157,10 +157,9 @@ def _reference_kept(e: BaseException) -> str | None:
     if saved.off:  # (its one line said the cache cannot be written: tlm.caches)
         return ("while computing the reference: none of its rounds are kept (the cache cannot be written); "
                 "the same command computes it from round 1")
-    try:
-        held = saved.others()  # (another compute's rounds of the key in the file, which this one does not resume)
-    except Exception:
-        held = 0
+    # (another compute's rounds of the key in the file, which this one does not resume; 0 where it cannot be read:
+    # partial_info, which kept() called on the same path above, raises for none)
+    held = saved.others()
     where = path_shown(saved.path)
     if saved.saved:  # (its rounds were in the file, and are no longer: another compute's in their place, or none)
         gone = (f"were replaced by another compute's {held} rounds, which the same command does not resume" if held

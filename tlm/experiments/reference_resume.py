@@ -59,6 +59,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -75,6 +76,7 @@ from tlm.storage_live import process_start
 SAVE_SECONDS = 60.0  # a save of more than SMALL_SAVE bytes waits this long after the last one (or the start)
 SMALL_SAVE = 4 << 20  # bytes (320 x 240 pixels: 3.7 MB, a few ms): saved after every cycle
 _now = time.monotonic  # (the clock of the saves' times)
+_STARTED: dict[int, int] = {}  # this process's start by its id (_started: read once; a forked child's, its own)
 
 
 @dataclass
@@ -107,6 +109,23 @@ def stops_at(errors: list[float], k: int, min_cycles: int, max_cycles: int, tole
         if errors[j - 2] < tolerance:
             return j
     return max_cycles if max_cycles <= k else None
+
+
+def _started(writer: str) -> int | None:
+    """When the process ``writer`` names (``h<host>-<pid>``, :func:`~tlm.storage.process_tag`) started
+    (:func:`~tlm.storage_live.process_start`; None without ``/proc``): this process's read once, as it cannot
+    change (a forked child, of another id, reads its own; another process's read each time)."""
+    pid = int(writer.rpartition("-")[2])
+    if pid in _STARTED:
+        return _STARTED[pid]
+    started = process_start(pid)
+    if started is not None and pid == os.getpid():
+        _STARTED[pid] = started
+    return started
+
+
+if hasattr(os, "register_at_fork"):  # (a child given the id of a process the parent read: not taken for it)
+    os.register_at_fork(after_in_child=_STARTED.clear)
 
 
 def _whose(info: dict) -> str:
@@ -184,7 +203,7 @@ class Partial:
         own rounds saved, or those it resumed from, or those another process computing the key saved."""
         info = partial_info(self.path)
         rounds = partial_rounds(info)
-        if self.rule is None or not rounds or info.get("version") != PARTIAL_VERSION or info.get("key") != self.key:
+        if self.rule is None or not rounds or not self._ours(info):
             return 0
         try:
             with np.load(self.path, allow_pickle=False) as z:
@@ -198,18 +217,21 @@ class Partial:
     def others(self) -> int:
         """The rounds of this key the file holds now that this compute, run again, does not resume (:meth:`kept`
         0): another compute's, of another ``reference.spp``, the other engine, or cycles past where this one's
-        rule stops, which its saves do not replace until it has more (:meth:`save`); 0 for none."""
+        rule stops, which its saves do not replace until it has more (:meth:`save`); 0 for none (and for a file
+        that cannot be read: damaged, gone, no regular file, :func:`~tlm.experiments.reference_cache.partial_info`)."""
         info = partial_info(self.path)
-        if info is None or info.get("version") != PARTIAL_VERSION or info.get("key") != self.key:
-            return 0
-        return partial_rounds(info)
+        return partial_rounds(info) if self._ours(info) else 0
+
+    def _ours(self, info: dict | None) -> bool:
+        """Whether header ``info`` (:func:`~tlm.experiments.reference_cache.partial_info`) is of rounds of this key,
+        saved in this layout (:data:`PARTIAL_VERSION`)."""
+        return info is not None and info.get("version") == PARTIAL_VERSION and info.get("key") == self.key
 
     def _holds_more(self, info: dict | None, k: int) -> bool:
         """Whether the saved rounds of header ``info`` (:func:`~tlm.experiments.reference_cache.partial_info`), of
         this key and layout, are more rounds than ``k`` cycles of this compute's: of another kind (cycles of another
         length, the other engine), they are kept for the compute that resumes them, not saved over (:meth:`save`)."""
-        return (info is not None and info.get("version") == PARTIAL_VERSION and info.get("key") == self.key
-                and partial_rounds(info) > k * self.strata)
+        return self._ours(info) and partial_rounds(info) > k * self.strata
 
     def _aside(self, info: dict, done: int, max_cycles: int) -> str:
         """What the line of rounds not resumed adds where they are of another kind (:meth:`_why_not`): that they
@@ -297,7 +319,7 @@ class Partial:
             return
         writer = process_tag()  # (and when the process it names started: None without /proc)
         head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": writer,
-                           "started": process_start(int(writer.rpartition("-")[2]))})
+                           "started": _started(writer)})
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             free = shutil.disk_usage(self.path.parent).free

@@ -271,24 +271,25 @@ def result(future: Future):
     ended without setting its outcome (concurrent.futures ends a worker whose call's outcome could
     not be set: a MemoryError under ``ulimit -v``), the error that ended it, rather than a wait for
     ever; where no thread ran it and its pool's have all ended, what ended one of them. The wait
-    is checked every half second."""
-    while True:
-        try:
-            return future.result(timeout=0.5)
-        except TimeoutError:
-            if future.done():  # (the call's own TimeoutError, a disk's ETIMEDOUT: raised as it came, not waited on)
-                return future.result()
-            ran, pool = getattr(future, "_tlm_thread", ()), getattr(future, "_tlm_pool", None)
-            workers = () if ran or pool is None else set(getattr(pool, "_threads", ()))  # (none left to run it)
-            if ((ran and not ran[0].is_alive()) or (workers and not any(t.is_alive() for t in workers))) \
-                    and not future.done():
-                future.cancel()
-                with _POOLS_LOCK:
-                    _drop(pool)
-                lost = [e for t in (ran or sorted(workers, key=lambda t: t.name))
-                        if (e := getattr(t, "_tlm_lost", None)) is not None]
-                raise (lost[0] if lost else RuntimeError("the kernel threads ended without finishing a call")) \
-                    from None
+    is checked every half second (:func:`~tlm.kernels.threads_forked.polled`, the forked pool's too)."""
+    return threads_forked.polled(future, lambda: _worker_ended(future))
+
+
+def _worker_ended(future: Future) -> BaseException | None:
+    """What ended the worker thread running ``future``'s call, or, where none ran it, every thread of its pool
+    (:func:`_lost` keeps it on the thread), the call cancelled and its pool let go (:func:`_drop`); None while a
+    thread that may finish it lives, or the call finished."""
+    ran, pool = getattr(future, "_tlm_thread", ()), getattr(future, "_tlm_pool", None)
+    workers = () if ran or pool is None else set(getattr(pool, "_threads", ()))  # (none left to run it)
+    if not ((ran and not ran[0].is_alive()) or (workers and not any(t.is_alive() for t in workers))) \
+            or future.done():
+        return None
+    future.cancel()
+    with _POOLS_LOCK:
+        _drop(pool)
+    lost = [e for t in (ran or sorted(workers, key=lambda t: t.name))
+            if (e := getattr(t, "_tlm_lost", None)) is not None]
+    return lost[0] if lost else RuntimeError("the kernel threads ended without finishing a call")
 
 
 _POOL_THREADS = "tlm-kernel-"  # the start of the pools' threads' names

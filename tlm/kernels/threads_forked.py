@@ -267,25 +267,40 @@ def _manager_errors() -> None:
     threading.excepthook = hook
 
 
+def polled(future, ended: Callable[[], BaseException | None]):
+    """``future.result()``, the wait checked every half second: where ``ended()`` gives an error (what would
+    finish the call ended without finishing it, and was let go: its future never finishes), that error is
+    raised rather than a wait for ever. The one wait of the pools' calls: :func:`_outcome` (the forked pool's)
+    and :func:`~tlm.kernels.threads.result` (the thread pools')."""
+    while True:
+        try:
+            return future.result(timeout=0.5)
+        except TimeoutError:
+            if future.done():  # (the call's own TimeoutError, a disk's ETIMEDOUT: raised as it came, not waited on)
+                return future.result()
+            lost = ended()
+            if lost is not None:
+                raise lost from None
+
+
 def _outcome(pool, future):
     """``future.result()`` of a call on the forked ``pool``, or, where the pool's manager thread
     (which queues the calls for the workers and sets their outcomes) ended without finishing it,
     the error that ended that thread (a MemoryError, "can't start new thread" under ``ulimit -v``:
     the call's future never finishes), the workers killed and reaped first (no one else tells
-    them to stop), rather than a wait for ever. The wait is checked every half second, as
-    :func:`~tlm.kernels.threads.result` checks the thread pools'."""
-    while True:
-        try:
-            return future.result(timeout=0.5)
-        except TimeoutError:
-            if future.done():  # (the call's own TimeoutError: raised as it came)
-                return future.result()
-            manager = getattr(pool, "_executor_manager_thread", None)
-            if manager is not None and not manager.is_alive() and not future.done():
-                _end_forked(pool)
-                lost = getattr(pool, "_tlm_lost", None) or [RuntimeError(
-                    "the forked workers' manager thread ended without finishing a call")]
-                raise lost[0] from None
+    them to stop), rather than a wait for ever (:func:`polled`)."""
+    return polled(future, lambda: _manager_ended(pool, future))
+
+
+def _manager_ended(pool, future) -> BaseException | None:
+    """What ended the manager thread of the forked ``pool`` before ``future``'s call finished, its workers
+    killed and reaped (:func:`_end_forked`); None while it lives (or there is none yet), or the call finished."""
+    manager = getattr(pool, "_executor_manager_thread", None)
+    if manager is None or manager.is_alive() or future.done():
+        return None
+    _end_forked(pool)
+    return (getattr(pool, "_tlm_lost", None) or [RuntimeError(
+        "the forked workers' manager thread ended without finishing a call")])[0]
 
 
 def _call_forked(item):
