@@ -244,9 +244,10 @@ def test_an_overrides_refusal_of_extreme_reads_as_words():
 @pytest.mark.slow
 def test_to_srgb_of_a_render_names_it_and_what_to_pass(cache):
     res = tlm.render_image(TINY)
+    assert tlm.to_srgb(res).shape == (8, 8, 3)  # (a RenderResult: its composite at the run's exposure, h503)
     with pytest.raises(InputError) as e:
-        tlm.to_srgb(res)
-    assert "a RenderResult is not RGB radiance" in str(e.value) and "res.composite" in str(e.value)
+        tlm.to_srgb(res.radiance)
+    assert "a dict is not RGB radiance" in str(e.value) and "res.radiance[pass]" in str(e.value)
     assert "shape ()" not in str(e.value)
     assert tlm.to_srgb(res.composite).shape == (8, 8, 3)
 

@@ -201,25 +201,35 @@ def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: b
 
 @argument_names
 @imports_whole
-def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
-    """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
-    ``exposure`` (default: the 99.5th percentile of luminance to 1, as ``tlm run`` does for
-    its images, though a run leaves out the pixels that see a light directly), clipped.
+def to_srgb(radiance: Any, exposure: float | None = None) -> np.ndarray:
+    """(H, W, 3) linear radiance, or a RenderResult, as (H, W, 3) uint8 sRGB, to show or save.
+
+    A RenderResult (``tlm.to_srgb(res)``): its composite at the run's exposure, ``res.exposure``: the image
+    ``tlm run`` writes as ``images/composite.png`` (``render.exposure``, else automatic over the pixels that
+    do not see a light directly); a pass at the run's exposure, as ``images/<pass>.png``:
+    ``tlm.to_srgb(res.radiance[pass], res.exposure)``. Radiance: scaled by ``exposure`` (default: the 99.5th
+    percentile of that radiance's luminance to 1, all its pixels, lights seen directly too, so a pass or an
+    image with a light in view may come out darker than a run's), clipped.
     ``exposure`` is any real number (a numpy scalar too, ``np.percentile``'s); one that is not a
     finite number >= 0, radiance that is not real numbers, or radiance with no finite value
     (nothing to expose), is an InputError: the image would be black for no reason of the scene's."""
+    import sys
+
     import numpy as np
 
     from tlm.render.image import auto_exposure, to_srgb8
 
+    run = sys.modules.get("tlm.experiments.run")  # (imported wherever a RenderResult was made)
+    if run is not None and isinstance(radiance, run.RenderResult):
+        if exposure is None:  # (the run's own: images/composite.png's pixels, whatever the radiance holds)
+            return to_srgb8(radiance.composite, radiance.exposure)
+        radiance = radiance.composite
     given, radiance = radiance, np.asarray(radiance)
     if radiance.ndim < 1 or radiance.shape[-1] != 3 or radiance.dtype.kind not in "iuf":
-        passes = getattr(given, "radiance", None)  # (a RenderResult: its composite, or a pass's radiance)
         what = (f"an array of shape {radiance.shape} and dtype {radiance.dtype}" if radiance.dtype != object
                 or isinstance(given, np.ndarray) else _shown(given))
-        raise InputError(f"{what} is not RGB radiance: give (..., 3) real numbers, as a RenderResult's " + (
-            f"res.composite or res.radiance[{next(iter(passes))!r}]" if isinstance(passes, Mapping) and passes
-            else "radiance"), key="radiance")
+        raise InputError(f"{what} is not RGB radiance: give (..., 3) real numbers, as a RenderResult's "
+                         "res.radiance[pass], or the RenderResult (its composite)", key="radiance")
     if exposure is not None:
         value = math.nan  # (numpy's bool is not a numbers.Real)
         if not isinstance(exposure, bool) and isinstance(exposure, numbers.Real):

@@ -188,6 +188,15 @@ class RenderResult:
         return "\n".join(lines)
 
     @property
+    def exposure(self) -> float:
+        """The one factor ``tlm run``'s ``images/*.png`` multiply the linear radiance by before the sRGB
+        curve (``results.json`` ``image.exposure``): ``render.exposure``, else
+        :func:`~tlm.render.image.auto_exposure` over the composite's pixels that do not see a light directly
+        (:func:`image_exposure`). ``tlm.to_srgb(res)`` is ``images/composite.png``'s image,
+        ``tlm.to_srgb(res.radiance[p], res.exposure)`` ``images/<p>.png``'s."""
+        return image_exposure(self, self.composite)[0]
+
+    @property
     def composite(self) -> np.ndarray:
         out = np.zeros_like(next(iter(self.radiance.values())))
         for name in self.plan.run_names:
@@ -546,10 +555,10 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         composite = res.composite
         h, w = res.scene.camera.height, res.scene.camera.width
         primary = res.primary if res.primary is not None else _primary_of(res)
-        surfaces = ~primary.sees_light  # lights seen directly would set the exposure
-        exposure = res.cfg.render.exposure or auto_exposure(composite.reshape(-1, 3)[surfaces])
+        exposure, surfaces = image_exposure(res, composite, primary)  # (res.exposure)
         # (an exposure that takes pixels past the largest float: white, said once)
-        overflow = overflow_line(composite, exposure, composite.reshape(-1, 3)[surfaces])
+        overflow = overflow_line(composite, exposure, surfaces)
+        del surfaces
         if "radiance" in outputs:
             (tmp / "radiance").mkdir()
         for name, rad in [*res.radiance.items(), ("composite", composite)]:
@@ -587,6 +596,16 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         # (strict JSON: an fps of no cycles to time, inf here, is written as null)
         (tmp / "results.json").write_text(json_text(results, indent=2) + "\n", encoding="utf-8")
     return results
+
+
+def image_exposure(res: RenderResult, composite: np.ndarray,
+                   primary: Primary | None = None) -> tuple[float, np.ndarray]:
+    """The run's one exposure for its images (:attr:`RenderResult.exposure`) given its ``composite``, and the
+    (n, 3) radiance of the pixels the automatic one is set by: those whose first sample does not see a light
+    directly (a light seen would set it). ``primary``: the result's AOVs, where the caller has them."""
+    primary = primary if primary is not None else res.primary if res.primary is not None else _primary_of(res)
+    surfaces = composite.reshape(-1, 3)[~primary.sees_light]
+    return res.cfg.render.exposure or auto_exposure(surfaces), surfaces
 
 
 def _primary_of(res: RenderResult) -> Primary:

@@ -8,12 +8,15 @@ import numpy as np
 
 
 def auto_exposure(radiance: np.ndarray, percentile: float = 99.5) -> float:
-    """Scale that maps the given percentile of luminance to 1 (1.0 for a black image)."""
-    lum = radiance @ np.array([0.2126, 0.7152, 0.0722])
-    lit = lum[lum > 0]
-    if lit.size == 0:
-        return 1.0
-    level = float(np.percentile(lit, percentile))
+    """Scale that maps the given percentile of luminance to 1 (1.0 for a black image, or one whose
+    percentile is not finite: infinite radiance there). Quietly: numpy's warnings of inf - inf, in the
+    luminance or between the percentile's neighbours, are of NaNs this reads as above."""
+    with np.errstate(invalid="ignore"):
+        lum = radiance @ np.array([0.2126, 0.7152, 0.0722])
+        lit = lum[lum > 0]
+        if lit.size == 0:
+            return 1.0
+        level = float(np.percentile(lit, percentile))
     return 1.0 / level if level > 0 and np.isfinite(level) else 1.0
 
 
@@ -32,7 +35,7 @@ def to_srgb8(radiance: np.ndarray, exposure: float) -> np.ndarray:
     out = np.empty(flat.shape[0], dtype=np.uint8)
     for a in range(0, flat.shape[0], SRGB_BLOCK):
         b = min(a + SRGB_BLOCK, flat.shape[0])
-        with np.errstate(over="ignore"):  # (inf: white, below)
+        with np.errstate(over="ignore", invalid="ignore"):  # (inf: white, below; inf * 0, NaN: black)
             x = np.clip(np.nan_to_num(flat[a:b] * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
         s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
         out[a:b] = np.round(s * 255.0).astype(np.uint8)
