@@ -82,4 +82,6 @@ def _api() -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+    """``dir(tlm)``: the API's names (:data:`__all__`), not this module's own (``Any``, ``TYPE_CHECKING``,
+    ``annotations``) nor the submodules imported so far."""
+    return sorted(__all__)

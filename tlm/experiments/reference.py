@@ -531,6 +531,22 @@ class Made:
     image: np.ndarray | None = None  # (H, W, 3) float32: the reference of ``meta``, as its reference.npy holds it
     warnings: tuple[str, ...] = ()  # (tlm.api.reference: the lines tlm reference prints on stderr, returned)
 
+    def __repr__(self) -> str:
+        """One line (a notebook shows it for ``tlm.reference(...)``), not the image's values: the key, the image's
+        width x height, the rounds and relative standard error against the tolerance, whether computed now, the
+        folder, and how many warnings; each field as it is: ``.image``, ``.meta``, ``.settings``, ``.kept``."""
+        image = "x".join(map(str, self.image.shape[1::-1])) if self.image is not None else "none"
+        rse = self.meta.get("relative_standard_error")
+        error = f"{rse:.3g}" if isinstance(rse, (int, float)) else "unknown"
+        tolerance = getattr(self.settings, "tolerance", None)
+        folder = str(self.folder) if self.folder is not None else "none (kept nowhere)"
+        return (f"Made(key={self.key!r}, image {image}, {self.meta.get('rounds', '?')} rounds, relative standard "
+                f"error {error} (tolerance {tolerance}: {'met' if self.meets else 'not met'}), "
+                f"{'computed now' if self.computed else 'from the cache'}, folder {folder}"
+                + (", kept: see .kept" if self.kept else "")
+                + (f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}" if self.warnings else "")
+                + ")")
+
     @property
     def meets(self) -> bool:
         """Whether the reference the cache holds now meets the tolerance asked for

@@ -1,32 +1,29 @@
 """What every report section shares: the figure and section records, and one plot style.
 
-Figures are drawn with matplotlib's object API (``matplotlib.figure.Figure``, no
-pyplot state, no display needed). The style survives greyscale printing: colours are
-told apart by luminance as well as hue, and every series also has its own hatch (bars)
-or marker and line style (lines).
+Figures are drawn with matplotlib's object API (``matplotlib.figure.Figure``, no pyplot state, no display needed), in
+matplotlib's default style and tlm's own settings whatever the caller set (:func:`report_style`: ``plt.style.use``,
+``rcParams``, a matplotlibrc), theirs back after. The style survives greyscale printing: colours are told apart by
+luminance as well as hue, and every series also has its own hatch (bars) or marker and line style (lines).
 
-Every PNG is written by :func:`write_png`: the layout engine runs once and the figure is
-drawn once (``Figure.savefig`` alone draws a laid-out figure twice, once without output to
-run the layout), and one mathtext parser serves every figure, so that a tick label parsed
-for one figure (``10^2`` on a log axis) is not parsed again for the next (the parser keeps
-the last 50). The pixels are those ``savefig`` writes.
+Every PNG is written by :func:`write_png`: the layout engine runs once and the figure is drawn once
+(``Figure.savefig`` alone draws a laid-out figure twice, once without output to run the layout), and one mathtext
+parser serves every figure, so that a tick label parsed for one figure (``10^2`` on a log axis) is not parsed again
+for the next (the parser keeps the last 50). The pixels are those ``savefig`` writes.
 
-The report's figure files are set by :func:`figure_output` (``tlm report --formats --dpi``):
-the PNG at ``dpi`` (default :data:`DPI`), and where asked a PDF and an SVG beside it, of the
-same stem. They are saved from the one laid-out figure (one draw per file, no second layout),
-so that the three files show one layout. Their text stays text: the PDF embeds its fonts as
-TrueType (``pdf.fonttype`` 42; matplotlib's default, Type 3 fonts, is flagged by some
-publishers' PDF checks), and the SVG keeps each label a ``<text>`` element (``svg.fonttype``
-``none``), editable and searchable, in the font the figure names (DejaVu Sans, with generic
-``sans-serif`` after it): a viewer without that font draws the text in another, of other
-widths, where glyphs as paths (``path``) would look the same everywhere but could not be
-edited. Neither file records the time it was written, so a report written again from the
-same inputs writes the same PDF and SVG files, byte for byte.
+The report's figure files are set by :func:`figure_output` (``tlm report --formats --dpi``): the PNG at ``dpi``
+(default :data:`DPI`), and where asked a PDF and an SVG beside it, of the same stem. They are saved from the one
+laid-out figure (one draw per file, no second layout), so that the three files show one layout. Their text stays text:
+the PDF embeds its fonts as TrueType (``pdf.fonttype`` 42; matplotlib's default, Type 3 fonts, is flagged by some
+publishers' PDF checks), and the SVG keeps each label a ``<text>`` element (``svg.fonttype`` ``none``), editable and
+searchable, in the font the figure names (DejaVu Sans, with generic ``sans-serif`` after it): a viewer without that
+font draws the text in another, of other widths, where glyphs as paths (``path``) would look the same everywhere but
+could not be edited. Neither file records the time it was written, so a report written again from the same inputs
+writes the same PDF and SVG files, byte for byte.
 
-Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_`` and ``-``
-and the one ``.`` of ``.png``, so that it works unquoted in a shell, in a URL and in LaTeX's
-``\\includegraphics``; and one name is one figure within a report (two figures that would get
-the same name do not overwrite each other: the later gets a suffix from its key).
+Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_`` and ``-`` and the one ``.`` of
+``.png``, so that it works unquoted in a shell, in a URL and in LaTeX's ``\\includegraphics``; and one name is one
+figure within a report (two figures that would get the same name do not overwrite each other: the later gets a suffix
+from its key).
 """
 
 from __future__ import annotations
@@ -38,6 +35,7 @@ import hashlib
 import math
 import re
 import textwrap
+import threading
 import unicodedata
 import warnings
 from collections.abc import Iterable
@@ -360,9 +358,38 @@ def figure_output(formats: str | Iterable[str] | None = None, dpi=None):
     chosen = output(formats if formats is not None else now.formats, dpi if dpi is not None else now.dpi)
     token = _OUTPUT.set(chosen)
     try:
-        yield chosen
+        with report_style():
+            yield chosen
     finally:
         _OUTPUT.reset(token)
+
+
+# the settings a report keeps as the caller set them (by prefix): not how a figure looks (as style.use("default"))
+_KEPT_RC = ("backend", "interactive", "toolbar", "timezone", "date.epoch", "figure.max_open_warning",
+            "figure.raise_window", "savefig.directory", "tk.window_focus", "docstring.hardcopy", "webagg.")
+_STYLED: list = []  # the one rc_context of the reports within report_style now, once per report
+_STYLING = threading.Lock()
+
+
+@contextlib.contextmanager
+def report_style():
+    """Within it (:func:`figure_output`), figures are made, drawn and saved with matplotlib's defaults and
+    :data:`VECTOR_RC` whatever the caller set (:data:`_KEPT_RC` aside): a report looks the same whoever writes it.
+    The caller's settings are back at its end (the last end of several reports written in one process's threads)."""
+    with _STYLING:
+        if not _STYLED:
+            with warnings.catch_warnings():  # (a deprecated setting's default set without its warning, as rcdefaults)
+                warnings.simplefilter("ignore", matplotlib.MatplotlibDeprecationWarning)
+                rc = {k: v for k, v in matplotlib.rcParamsDefault.items() if not k.startswith(_KEPT_RC)}
+                (context := matplotlib.rc_context({**rc, **VECTOR_RC})).__enter__()
+        _STYLED.append(_STYLED[0] if _STYLED else context)
+    try:
+        yield
+    finally:
+        with _STYLING:
+            if len(_STYLED) == 1:
+                _STYLED[0].__exit__(None, None, None)
+            _STYLED.pop()
 
 
 def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
@@ -609,20 +636,18 @@ def _stem(parts: list[str], cut: bool = False) -> str | None:
 
 
 def figure_name(out: Path, *parts, key: str | None = None) -> str:
-    """The file name of a figure the report writes into the folder ``out``, made from ``parts``
-    (``"sweep"``, a sweep folder's name, a factor; a last part ending in ``.png`` loses it), and
-    taken for the figure ``key`` (what tells it from any other: a folder's full path and the
-    factor; by default the parts).
+    """The file name of a figure the report writes into the folder ``out``, made from ``parts`` (``"sweep"``, a sweep
+    folder's name, a factor; a last part ending in ``.png`` loses it), and taken for the figure ``key`` (what tells
+    it from any other: a folder's full path and the factor; by default the parts).
 
     The name is the parts (:func:`_name_part`, empty ones left out) joined by ``_``, then ``.png``:
-    ``sweep_odd_sweep_x_y_2_e_arch_fifo_depth.png`` for ``odd sweep (x&y)#2 é`` and ``arch.fifo_depth``.
-    Where a part would be cut (past :data:`NAME_PART`) or the name (past :data:`NAME_MAX`), each
-    dotted setting before an ``=`` in the parts keeps its last part (``arch.fifo_depth = 16`` is
-    ``fifo_depth_16``, :func:`short_keys`) before anything is cut, so that a combination of factors
-    keeps its values; a name that fits is as it was. It is unique within the folder: where a figure
-    of another key took that name (and its file is there), this one gets ``_`` and 8 hex digits of its
-    key's hash, so a report written again from
-    the same inputs gives every figure the same name. The same key gets the same name again."""
+    ``sweep_odd_sweep_x_y_2_e_arch_fifo_depth.png`` for ``odd sweep (x&y)#2 é`` and ``arch.fifo_depth``. Where a
+    part would be cut (past :data:`NAME_PART`) or the name (past :data:`NAME_MAX`), each dotted setting before an
+    ``=`` in the parts keeps its last part (``arch.fifo_depth = 16`` is ``fifo_depth_16``, :func:`short_keys`)
+    before anything is cut, so that a combination of factors keeps its values; a name that fits is as it was. It is
+    unique within the folder: where a figure of another key took that name (and its file is there), this one gets
+    ``_`` and 8 hex digits of its key's hash, so a report written again from the same inputs gives every figure the
+    same name. The same key gets the same name again."""
     parts = [str(p) for p in parts]
     if parts and parts[-1].lower().endswith(".png"):
         parts[-1] = parts[-1][:-4]

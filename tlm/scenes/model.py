@@ -381,6 +381,20 @@ class Scene:
     # the renderer computes them with the default crease angle
     normals: np.ndarray | None = None
 
+    def __repr__(self) -> str:
+        """One line (a notebook shows it for ``tlm.load_scene(...)``), not the arrays' values: the name, the
+        triangles, parts, materials and lights, the camera's width x height, the photons and the file; each field as
+        it is: ``.triangles``, ``.materials``, ``.lights``, ``.camera``, ``.extra``."""
+        name = self.name if len(self.name) <= 40 else self.name[:37] + "..."
+        kinds = sorted({light.kind for light in self.lights})
+        n_lights = len(self.lights)
+        return (f"Scene({name!r}: {self.n_triangles:,} triangles, {len(self.part_names)} "
+                f"part{'s' if len(self.part_names) != 1 else ''}, {len(self.materials)} "
+                f"material{'s' if len(self.materials) != 1 else ''}, {n_lights} light{'s' if n_lights != 1 else ''}"
+                + (f" ({', '.join(kinds)})" if kinds else "")
+                + f", camera {self.camera.width}x{self.camera.height}, {self.photons:,} photons"
+                + (f", from {self.source}" if self.source else "") + ")")
+
     @property
     def n_triangles(self) -> int:
         return int(self.triangles.shape[0])
