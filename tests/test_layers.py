@@ -38,7 +38,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.experiments.reference_resume",  # (h454: an interrupted reference resumed, out of reference)
      "tlm.experiments.error_cost_blur",  # (h483: error-vs-cost's blur warning, once per study, out of error_cost)
      "tlm.experiments.frame_keys",  # (h487: the scene's part of a frame's key, remembered, out of frames)
-     "tlm.experiments.sweep_folder"),  # (h489: what a sweep finds in its folder from before it, out of sweep)
+     "tlm.experiments.sweep_folder",  # (h489: what a sweep finds in its folder from before it, out of sweep)
+     "tlm.experiments.photon_warnings"),  # (h505: the line on paths cut with power in flight, out of run_warnings)
     ("tlm.report",
      "tlm.report.written",  # (h477: which files of a run folder its run wrote, the report's only reads)
      "tlm.report.summary_studies",  # (h487: the summary's words on the studies, no figure, out of summary)

@@ -3,7 +3,8 @@ but a wrong or a misleading result.
 
 :func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
 a setting the run never reads, an override of a key whose pass is left out:
-:func:`unread_overrides`, a reference not converged or much blurrier than the run: :func:`reference_warnings`,
+:func:`unread_overrides`, a reference not converged or much blurrier than the run, photon paths cut with power in flight
+(:mod:`tlm.experiments.photon_warnings`): :func:`reference_warnings`,
 a BSP cut short); :func:`stream_warnings`: the simulated stream's (too few frames, a period whose gaps differ:
 :func:`period_warnings`, packets too coarse from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set
 that the timing model never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
@@ -24,6 +25,7 @@ from tlm.arch.model import Timing, settling
 from tlm.arch.steady import runs_alike
 from tlm.config import ArchConfig, RunConfig
 from tlm.config_words import sets_nothing
+from tlm.experiments.photon_warnings import cut_warnings
 from tlm.experiments.study import override_key, set_leaves
 from tlm.registry import SCHEDULERS
 from tlm.render import checks
@@ -514,10 +516,12 @@ def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None =
     against a reference that is not converged (``reference_converged`` false: it does not meet
     ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it; and, given the
     run's ``emitted`` photons and the scene's (``scene_photons``, what a null ``reference.photons``
-    takes), the line of :func:`blur_warnings` on a reference much blurrier than the run."""
+    takes), the line of :func:`blur_warnings` on a reference much blurrier than the run; before them, given the
+    run's photons as ``results.json`` records them, :func:`~tlm.experiments.photon_warnings.cut_warnings`' line on
+    paths ``photons.max_bounces`` cut with power still travelling (h505: its words on the error need the error)."""
     from tlm.experiments.reference_cache import rounds_advice  # (h473: the rounds that may reach the tolerance)
 
-    blur = blur_warnings(error, cfg, emitted, scene_photons)
+    blur = [*cut_warnings(emitted, cfg, error), *blur_warnings(error, cfg, emitted, scene_photons)]
     if not (error and error.get("available")) or error.get("reference_converged"):
         return blur
     rse, rounds, ref = error.get("reference_standard_error"), error.get("reference_rounds"), cfg.reference
@@ -541,12 +545,12 @@ BLUR_RATIO = 4
 def emitted_photons(res: RenderResult) -> dict | None:  # noqa: F821
     """What :func:`blur_warnings` reads of the run's photon-map pass, as ``results.json`` ``photons`` records it:
     ``emitted``, the photons it emitted (its caustic group's own ``photons.caustic_count`` included), and
-    ``caustic``, the caustic photons its maps stored (none: a scene without a mirror or glass). None without the
-    pass."""
+    ``caustic``, the caustic photons its maps stored (none: a scene without a mirror or glass); and ``cut_share``
+    (:func:`~tlm.experiments.photon_warnings.cut_warnings`). None without the pass."""
     if res.photons is None:
         return None
     stats = res.photons.photons.stats()
-    return {"emitted": int(stats["emitted"]), "caustic": int(stats["caustic"])}
+    return {"emitted": int(stats["emitted"]), "caustic": int(stats["caustic"]), "cut_share": stats["cut_share"]}
 
 
 def _per_map(cfg: RunConfig, photons: int | dict, n_ref: int, scene_photons: int | None) -> list[tuple]:

@@ -16,7 +16,8 @@ arrays."
   times reflectance); glass reflects with the Fresnel probability ``F`` (Russian
   roulette: power unchanged) or refracts (power times transmittance), total internal
   reflection included; directions about the interpolated shading normals, as for eye
-  rays. Paths stop at ``max_bounces`` surface hits.
+  rays. Paths stop at ``max_bounces`` surface hits; the power the photons still carried
+  then is :attr:`PhotonMaps.cut_power` (:func:`cut_power`).
 * **What the maps hold.** The ray-cast frame already renders direct light (shadow
   rays), so a photon's *first* surface hit, straight from the light, is not stored (nor
   after crossing only index-matched glass, which shadow rays pass too): the caustic map
@@ -42,6 +43,7 @@ with, and a run repeats exactly.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -82,6 +84,21 @@ PHOTON_MIN_BATCH = 4096
 # statistics and the reference), never gathered (:func:`tlm.render.pmap.gathered_maps`, the render's
 # rule, says which of them a frame gathers: not an empty one)
 PIPELINE_MAPS = {False: ("caustic", "indirect"), True: ("caustic", "global")}
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709: the weights of :attr:`PhotonMaps.cut_share`
+
+
+def cut_power(powers: Sequence[np.ndarray]) -> tuple[float, float, float]:
+    """The RGB sum of the (k, 3) ``powers`` (the photons ``max_bounces`` cut, chunk by chunk),
+    each channel by :func:`math.fsum`: correctly rounded, so the same whichever chunks (threads,
+    ``render.batch_rays``) the photons were traced in and in what order."""
+    return tuple(math.fsum(v for a in powers for v in a[:, c].tolist()) for c in range(3))
+
+
+def cut_share(cut: Sequence[float], emitted: Sequence[float]) -> float:
+    """``cut``'s luminance (:data:`LUMINANCE`) over ``emitted``'s: the share of the lights' power the
+    photons still carried when ``max_bounces`` ended their paths (0.0 where nothing was emitted)."""
+    total = math.fsum(w * x for w, x in zip(LUMINANCE, emitted, strict=True))
+    return math.fsum(w * x for w, x in zip(LUMINANCE, cut, strict=True)) / total if total > 0 else 0.0
 
 
 def photon_spans(n: int, max_bounces: int, batch_rays: int | None) -> list[tuple[int, int]]:
@@ -156,6 +173,11 @@ class PhotonMaps:
     indirect_map: PhotonMap
     emitted: int
     global_map: PhotonMap | None = None  # final gathering's: every diffuse hit of the global group (None: off)
+    # the power (RGB) the photons of both groups still carried when max_bounces ended their paths, each group's an
+    # estimate of the lights' power its paths carry on, and its luminance's share of the lights' power (the
+    # global group's at emission: what the caustic group emits is the part its aimed cones take of it)
+    cut_power: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    cut_share: float = 0.0
 
     @property
     def maps(self) -> tuple[PhotonMap, PhotonMap]:
@@ -203,6 +225,8 @@ class PhotonMaps:
             "caustic": self.caustic_map.n,
             "indirect": self.indirect_map.n,
             "stored_power": self.power.sum(axis=0).tolist(),
+            "cut_power": list(self.cut_power),
+            "cut_share": self.cut_share,
             "tree": self.indirect_map.tree.stats(),
             "caustic_tree": self.caustic_map.tree.stats(),
             **({} if self.global_map is None else {"global": self.global_map.n,
@@ -348,7 +372,8 @@ def trace_photons(
     def trace(span: tuple[int, int]):
         """Photons ``lo .. hi - 1``, every bounce, as traced with all the others (their
         random numbers are hashed by photon and bounce): their work (owner: the photon
-        from ``lo``), what each bounce stored, in photon order, and the pairs charged."""
+        from ``lo``), what each bounce stored, in photon order, the pairs charged and the
+        power of the photons still travelling after ``max_bounces`` (their paths cut)."""
         lo, hi = span
         m = hi - lo
         work = {k: np.zeros(m, dtype=np.int64) for k in PHOTON_WORK if k != "photons_emitted"}
@@ -460,7 +485,7 @@ def trace_photons(
 
         pairs = Deferred.like(streams) if concurrent else streams
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
-        return work, stored, full, pairs
+        return work, stored, full, pairs, power
 
     threads.result(prepared)
     spans = photon_spans(n, max_bounces, batch_rays)
@@ -468,15 +493,17 @@ def trace_photons(
     concurrent = len(spans) > 1 and threads.current() > 1
     stored: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}  # bounce -> chunks' photons
     full: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}
+    cut: list[np.ndarray] = []  # each chunk's photons still travelling after max_bounces: their power
     traced = (threads.forked(trace, spans, threads.current()) if concurrent and threads.can_fork()
               else threads.ordered(trace, spans))
     with contextlib.closing(traced):  # (ended here, whatever stops the loop: forked workers and their lock too)
-        for (lo, hi), (part, got, got_full, pairs) in zip(spans, traced, strict=True):
+        for (lo, hi), (part, got, got_full, pairs, left) in zip(spans, traced, strict=True):
             checkpoint()  # (a signal whose interrupt got lost stops the trace here, the chunks in flight too)
             if concurrent:
                 streams.settle(pairs)  # the chunks' reads in photon order: photon-major, as one trace's
             for k, v in part.items():
                 work[k][lo:hi] = v
+            cut.append(left)
             for into, add in ((stored, got), (full, got_full)):
                 for name, per_bounce in add.items():
                     for bounce, value in enumerate(per_bounce):
@@ -525,6 +552,8 @@ def trace_photons(
     made = dict(zip([args for _, args in tasks], threads.ordered(lambda t: t[0](*t[1]), tasks), strict=True))
     for name, k in wanted:
         made[(name,)]._memo[k] = made[(name, k)]  # (what PhotonMap.density_radius keeps)
+    lost = cut_power(cut)
     photons = PhotonMaps(made[("caustic",)], made[("indirect",)], emitted=n,
-                         global_map=made[("global",)] if global_map else None)
+                         global_map=made[("global",)] if global_map else None, cut_power=lost,
+                         cut_share=cut_share(lost, cut_power([power[~caustic_group]])))
     return PhotonTrace(photons, work)
