@@ -25,8 +25,11 @@ class Fifo:
     and a packet without addresses takes one entry (its end marker).
     Its space is freed when the Intersection PM has tested the packet.
 
-    It keeps its peaks for ``timing.fifo`` (:func:`fifo_peaks`): the most entries and
-    packets it held at once (pushed, not yet freed), and what tells whether another depth
+    It keeps its peaks for ``timing.fifo`` (:func:`fifo_peaks`): the most entries
+    (``peak_entries``, slots: a packet takes one per address, the whole depth at most, so it
+    never passes the depth), triangle addresses (``peak_addresses``: each packet's all, one at
+    least, not cut to the depth: a packet of more than the depth counts whole) and packets it
+    held at once (pushed, not yet freed), and what tells whether another depth
     would have run it the same (:func:`fifo_depth_alike`), in addresses (a packet's
     triangle addresses, one at least, not cut to the depth): ``peak_shared``, the most
     addresses held with the new packet's among the puts that entered at once a FIFO
@@ -46,7 +49,8 @@ class Fifo:
         self.popped = 0
         self.held = 0  # packets in the FIFO: pushed, not yet freed
         self.addresses = 0  # their addresses, one a packet at least, not cut to the depth
-        self.peak_entries = 0  # the most entries held at once
+        self.peak_entries = 0  # the most entries (slots) held at once: the depth at most
+        self.peak_addresses = 0  # the most addresses held at once (one a packet at least, not cut to the depth)
         self.peak_packets = 0  # the most packets held at once
         self.peak_shared = 0  # the most addresses held with a packet that entered beside others
         self.waited = 0  # puts that found no room
@@ -86,7 +90,9 @@ class Fifo:
                 self.peak_shared = want
         level -= slots
         self.level = level
-        self.addresses += own
+        addresses = self.addresses = self.addresses + own
+        if addresses > self.peak_addresses:
+            self.peak_addresses = addresses
         if self.depth - level > self.peak_entries:
             self.peak_entries = self.depth - level
         held = self.held = self.held + 1
@@ -123,20 +129,22 @@ class Fifo:
         return self.data.wait()
 
 
-PEAKS = ("peak_entries", "peak_packets", "peak_shared", "waited", "waited_on_many")
+PEAKS = ("peak_entries", "peak_addresses", "peak_packets", "peak_shared", "waited", "waited_on_many")
+MOST = PEAKS[:4]  # the most of the FIFOs'; the rest summed
 
 
 def fifo_peaks(fifos: list[Fifo], depth: int, pipelines: int) -> dict:
     """``timing.fifo`` of results.json: ``depth`` (``arch.fifo_depth``), ``fifos`` (the FIFOs
     the frames filled: one a Traversal/Intersection phase a tile a frame) and, over them all
     and per pipeline (``pipelines``: its Intersection PM's input), the peaks of :class:`Fifo`:
-    ``peak_entries`` and ``peak_packets`` held at once and ``peak_shared`` (each the most of
-    its FIFOs'), ``least_waited`` (the fewest; None where no put waited for the one packet
+    ``peak_entries`` (slots, the depth at most), ``peak_addresses`` (triangle addresses, one a
+    packet at least, not cut to the depth) and ``peak_packets`` held at once and ``peak_shared``
+    (each the most of its FIFOs'), ``least_waited`` (the fewest; None where no put waited for the one packet
     held), ``waited`` and ``waited_on_many`` (summed)."""
     per = [{**dict.fromkeys(PEAKS, 0), "least_waited": None} for _ in range(pipelines)]
     for f in fifos:
         row = per[f.pipe]
-        for key in ("peak_entries", "peak_packets", "peak_shared"):
+        for key in MOST:
             if getattr(f, key) > row[key]:
                 row[key] = getattr(f, key)
         row["waited"] += f.waited
@@ -145,8 +153,8 @@ def fifo_peaks(fifos: list[Fifo], depth: int, pipelines: int) -> dict:
             row["least_waited"] = f.least_waited
     least = [row["least_waited"] for row in per if row["least_waited"] is not None]
     return {"depth": depth, "fifos": len(fifos),
-            **{key: max((row[key] for row in per), default=0) for key in PEAKS[:3]},
-            **{key: sum(row[key] for row in per) for key in PEAKS[3:]},
+            **{key: max((row[key] for row in per), default=0) for key in MOST},
+            **{key: sum(row[key] for row in per) for key in PEAKS[len(MOST):]},
             "least_waited": min(least, default=None), "pipelines": per}
 
 
@@ -165,3 +173,15 @@ def fifo_depth_alike(peaks: dict, depth: int, other: int) -> bool:
         return False
     least = peaks.get("least_waited")
     return peaks["peak_shared"] <= other and (least is None or least > other)
+
+
+def fifo_held(peaks: dict) -> str:
+    """The most the FIFOs of ``peaks`` (``timing.fifo``) held at once, in words: packets, entries
+    (slots, the depth at most) and triangle addresses (not cut to the depth; a results.json
+    written before they were recorded: left out)."""
+    n, e, depth, a = peaks["peak_packets"], peaks["peak_entries"], peaks["depth"], peaks.get("peak_addresses")
+    held = (f"{n} packet{'s' if n != 1 else ''}, {e} entr{'ies' if e != 1 else 'y'} of {depth} (slots: a packet "
+            "takes one per triangle address, the whole FIFO at most)")
+    if a is None:
+        return held.replace(", ", " or ", 1)
+    return f"{held} or {a} triangle address{'es' if a != 1 else ''} (its packets' all, not cut to the depth)"

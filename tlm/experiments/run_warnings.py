@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.arch.fifo import fifo_depth_alike
+from tlm.arch.fifo import fifo_depth_alike, fifo_held
 from tlm.arch.model import Timing, settling
 from tlm.arch.steady import runs_alike
 from tlm.config import ArchConfig, RunConfig
@@ -330,9 +330,9 @@ def _fifo_why(peaks: dict, depth: int, other: int) -> str:
     """Why every put enters the cycle it did at ``depth`` and at ``other``, from the FIFOs'
     ``peaks`` (``timing.fifo``, :func:`tlm.arch.fifo.fifo_depth_alike` holding)."""
     lo, hi = sorted((depth, other))
-    n, waited = peaks["peak_packets"], peaks["waited"]
-    parts = [f"no FIFO held more than {peaks['peak_entries']} entries or {n} packet{'s' if n != 1 else ''} at once "
-             "(timing.fifo, its peaks)"]
+    waited = peaks["waited"]
+    parts = [f"no FIFO held more than {fifo_held(peaks)} at once (timing.fifo: peak_packets, peak_entries, "
+             "peak_addresses)"]
     if peaks["peak_shared"]:
         parts.append(f"no packet entered beside others with more than {peaks['peak_shared']} triangle addresses "
                      f"held in all (timing.fifo.peak_shared), within depth {lo}")

@@ -35,6 +35,7 @@ import numpy as np
 from matplotlib.patches import Patch, PathPatch
 from matplotlib.path import Path as MplPath
 
+from tlm.arch.fifo import fifo_held
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, count, new_figure, save, some
@@ -248,10 +249,9 @@ def fifo_caption(fifo: dict | None) -> str:
     caption; "" for a run without it (one written before it was recorded)."""
     if not fifo:
         return ""
-    n, waited = fifo["peak_packets"], fifo["waited"]
-    return (f" Traversal-to-Intersection FIFOs (depth {fifo['depth']}): at most {fifo['peak_entries']} entries and "
-            f"{n} packet{'s' if n != 1 else ''} held at once; {waited} put{'s' if waited != 1 else ''} waited for "
-            "room (timing.fifo).")
+    waited = fifo["waited"]
+    return (f" Traversal-to-Intersection FIFOs: none held more than {fifo_held(fifo)} at once; {waited} "
+            f"put{'s' if waited != 1 else ''} waited for room (timing.fifo).")
 
 
 def _title(ax, title: str, run: Run) -> None:
