@@ -119,7 +119,7 @@ def test_a_notebook_s_values_read_as_their_plain_equivalents():
     path = tlm.load_config({**SMALL, "scene": ROOT / "scenes" / "cornell.yaml"})
     assert path.scene == str(ROOT / "scenes" / "cornell.yaml")
     over = tlm.load_config(SMALL, {"render.spp": np.int64(3), "arch.frames": np.uint8(2), "resolution": (8, 8)})
-    assert (over.render.spp, over.arch.frames, over.resolution) == (3, 2, [8, 8])
+    assert (over.render.spp, over.arch.frames, over.resolution) == (3, 2, (8, 8))
     # a path beyond the BMP survives the override's JSON (not as two lone surrogates)
     assert tlm.load_config(SMALL, {"scene": "s\U0001f642.yaml"}).scene == "s\U0001f642.yaml"
     # a NaN override is named as the NaN it is (JSON's NaN would read as the string 'NaN')
@@ -154,7 +154,7 @@ def test_configs_load_from_files_mappings_and_scene_files(tmp_path):
     assert more.overrides == ("mode=rcast", "render.spp=2", "arch.pipelines=2")
     assert tlm.load_config(more) is more
     d = tlm.load_config(SMALL, base=tmp_path)
-    assert (d.source, d.base, d.label, d.resolution) == (None, tmp_path, "(dict)", [16, 16])
+    assert (d.source, d.base, d.label, d.resolution) == (None, tmp_path, "(dict)", (16, 16))
     assert tlm.load_config(d.settings, base=tmp_path).settings == d.settings
     scene = tmp_path / "box.yaml"
     scene.write_text("extends: cornell\n")

@@ -85,7 +85,7 @@ def test_load_scene_takes_the_resolutions_load_config_takes():
     for resolution in (np.array([8, 6]), (8, 6), [np.int64(8), np.int64(6)]):
         camera = tlm.load_scene("cornell", resolution=resolution).camera
         assert (camera.width, camera.height) == (8, 6)
-        assert tlm.load_config({"scene": "cornell", "resolution": resolution}).resolution == [8, 6]
+        assert tlm.load_config({"scene": "cornell", "resolution": resolution}).resolution == (8, 6)
     with pytest.raises(tlm.InputError, match=r"^\(load_scene\): resolution: \[8\.5, 8\.0\] is not \[width, height\]"):
         tlm.load_scene("cornell", resolution=np.array([8.5, 8]))
 

@@ -51,7 +51,7 @@ def piped():
 @needs_dev_fd
 def test_load_config_of_a_pipe(piped):
     cfg = api.load_config(piped(CONFIG), {"resolution": [16, 16]})
-    assert cfg.scene == "cornell" and cfg.resolution == [16, 16] and not cfg.scene_file
+    assert cfg.scene == "cornell" and cfg.resolution == (16, 16) and not cfg.scene_file
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
@@ -78,7 +78,7 @@ def test_load_config_of_a_named_fifo(tmp_path):
         while writer.is_alive() and time.monotonic() < deadline:
             os.close(os.open(fifo, os.O_RDONLY | os.O_NONBLOCK))
             writer.join(0.05)
-    assert cfg.scene == "cornell" and cfg.resolution == [16, 16]
+    assert cfg.scene == "cornell" and cfg.resolution == (16, 16)
 
 
 def test_a_config_file_is_read_once(tmp_path, monkeypatch, capsys):

@@ -98,7 +98,7 @@ def test_tlm_run_of_a_piped_config_records_a_command_that_runs_again(tmp_path, c
     error = json.loads((out / "results.json").read_text())["error"]
     assert error["command"] == f"tlm reference {resolved}" and resolved.is_file()  # (was `tlm reference /dev/fd/N`)
     cfg = config.load_config(resolved)[0]  # (what it names: every setting of the run, the --set values included)
-    assert (cfg.mode, cfg.resolution, cfg.photons.count) == ("pmap", [16, 16], 2000)
+    assert (cfg.mode, cfg.resolution, cfg.photons.count) == ("pmap", (16, 16), 2000)
 
 
 def test_a_sweeps_piped_base_is_named_by_a_points_config(tmp_path, piped, monkeypatch):

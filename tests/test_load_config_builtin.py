@@ -17,7 +17,7 @@ def test_a_built_in_experiment_by_name_from_any_folder(tmp_path, monkeypatch):
     packaged = api.configs_dir() / "cornell_pmap.yaml"
     cfg = tlm.load_config("cornell_pmap", {"resolution": [16, 16]})
     by_path = tlm.load_config(str(packaged), {"resolution": [16, 16]})
-    assert cfg.settings == by_path.settings and cfg.mode == "pmap" and cfg.resolution == [16, 16]
+    assert cfg.settings == by_path.settings and cfg.mode == "pmap" and cfg.resolution == (16, 16)
     assert cfg.source == str(packaged) and cfg.base == packaged.parent
     assert cfg.overrides == ("resolution=[16, 16]",)
 

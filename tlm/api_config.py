@@ -23,7 +23,7 @@ from tlm.api_common import existing_folder as _existing_folder
 from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_common import shown as _shown
 from tlm.api_studies import expanded
-from tlm.config import RunConfig, apply_overrides, config_from_dict, plain, read_yaml, to_dict
+from tlm.config import RunConfig, apply_overrides, checked, config_from_dict, plain, read_yaml, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.whole_imports import imports_whole
@@ -45,6 +45,9 @@ class Config:
     applied to it; ``scene_file``: it is a scene file's default config (``tlm run
     SCENE.yaml``); ``via``: how the overrides were given, as error messages name them
     (``the overrides`` for a mapping; ``--set`` for the command line's strings: :func:`load_config`).
+    A Config made here of a RunConfig the checks did not make (``dataclasses.replace(cfg.settings, ...)``,
+    ``dataclasses.replace(cfg, settings=...)``) checks it as a mapping of its values is checked
+    (:func:`tlm.config.checked`: the InputError names the key and the value) and holds what those checks give.
     """
 
     settings: RunConfig
@@ -53,6 +56,14 @@ class Config:
     overrides: tuple[str, ...] = ()
     scene_file: bool = False
     via: str = "the overrides"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.settings, RunConfig):
+            raise InputError(f"{_shown(self.settings)} is not a RunConfig: tlm.load_config makes a Config of a file, "
+                             "a built-in name or a mapping", key="settings")
+        settings = checked(self.settings)  # (one the checks made: as it is)
+        if settings is not self.settings:
+            object.__setattr__(self, "settings", settings)
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_") or name == "settings":  # (copy and pickle look for these first)
@@ -71,8 +82,9 @@ class Config:
         the settings that name the run; every setting: ``cfg.settings`` or ``tlm.config.to_dict(cfg.settings)``."""
         shown = list(self.overrides[:4]) + ([f"... {len(self.overrides) - 4} more"] if len(self.overrides) > 4 else [])
         more = f", overrides=[{', '.join(shown)}]" if shown else ""
-        resolution = self.settings.resolution
-        shown_resolution = repr(resolution) if resolution is not None else f"{self._scene_resolution()!r} (the scene's)"
+        resolution = self.settings.resolution  # (a tuple, shown as the list it is written as: [48, 48])
+        shown_resolution = repr(list(resolution)) if resolution is not None else \
+            f"{self._scene_resolution()!r} (the scene's)"
         return (f"Config(source={self.source!r}{more}, scene={self.settings.scene!r}, mode={self.settings.mode!r}, "
                 f"resolution={shown_resolution}, seed={self.settings.seed!r})")
 

@@ -124,7 +124,8 @@ class RunConfig:
     mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)", choices=MODES)
     seed: int = _f(0, "seed of every random stream (SeedSequence); at most 2**64 - 1, the kernels' 64-bit hash key",
                    min=0, max=2**64 - 1)
-    resolution: list[int] | None = _f(
+    # (a list in YAML, held as a tuple, as every list-valued setting: a loaded config is immutable and hashable)
+    resolution: tuple[int, ...] | None = _f(
         None, "[width, height] in pixels; null = the scene's", length=2, example="[64, 64]"
     )
     bsp: BSPConfig = field(default_factory=BSPConfig, metadata={"help": "geometry BSP"})
@@ -152,8 +153,7 @@ def _type_ok(value: Any, tp: Any) -> bool:
         return isinstance(value, (int, float)) and not isinstance(value, bool)
     if tp is str:
         return isinstance(value, str)
-    if origin is list:
-        (inner,) = typing.get_args(tp)
+    if (inner := config_words.item_type(tp)) is not None:  # (a list-valued setting: YAML's list, held as a tuple)
         return isinstance(value, list) and all(_type_ok(v, inner) for v in value)
     return False
 
@@ -198,6 +198,7 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
             values[name] = v
     out = cls(**values)
     _across(out, source, prefix)
+    out.__dict__[_CHECKED] = True  # (checked whole: checked() takes it as it is)
     return out
 
 
@@ -231,7 +232,7 @@ def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> A
     _check_range(v, f.metadata, source, key)
     if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
         v = float(v)
-    return v
+    return tuple(v) if isinstance(v, list) else v  # (immutable: to_dict, YAML and the keys give it as a list)
 
 
 def run_config_field(name: str, raw: dict, source: str = "(dict)") -> Any:
@@ -547,10 +548,39 @@ def config_from_dict(raw: dict, source: str = "(dict)") -> RunConfig:
     return _build(RunConfig, plain(raw), source, "")
 
 
+# the mark, in its __dict__ (not a field: not compared, hashed nor written), of a RunConfig or a section the
+# checks made (_build): frozen, of immutable values, it stays as checked (a copy or a pickle of it too); a new one
+# (dataclasses.replace, RunConfig(...)) has none
+_CHECKED = "_tlm_checked"
+
+
+def checked(settings: RunConfig, source: str = "(RunConfig)") -> RunConfig:
+    """``settings``, a RunConfig made anywhere (``dataclasses.replace`` of a loaded one, ``RunConfig(...)``),
+    checked as the mapping of its values (:func:`to_dict`) is, by :func:`config_from_dict`'s rules: the same
+    InputError names the key and the value (``(RunConfig): render.spp: 0 must be >= 1``); returns the RunConfig
+    those checks make of it (its values as a loaded config holds them: a list as a tuple, a numpy number as
+    Python's). What the checks made is not checked again: such a RunConfig is given back as it is, and such a
+    section (``arch`` of ``dataclasses.replace(cfg.settings, seed=3)``) is kept (a RunConfig is the product of
+    its fields: :func:`run_config_field`), so a config that changes a plain field costs microseconds."""
+    if type(settings) is RunConfig and _CHECKED in settings.__dict__:
+        return settings
+    hints, fields = _schema(RunConfig)
+    values = {}
+    for name, f in fields.items():
+        v = getattr(settings, name)
+        if type(v) is hints[name] and _CHECKED in getattr(v, "__dict__", ()):  # (a section the checks made: as it is)
+            values[name] = v
+        else:  # (as config_from_dict checks the value's plain form)
+            values[name] = _field(f, hints[name], {name: plain(_plain_copy(v))}, source, name)
+    out = RunConfig(**values)
+    out.__dict__[_CHECKED] = True
+    return out
+
+
 def to_dict(cfg: Any) -> dict:
     """The resolved config as plain data (every parameter, defaults included): what
     ``dataclasses.asdict`` gives (new dicts and lists throughout), without its deep copy of
-    every number and string."""
+    every number and string, and a list-valued setting (held as a tuple) as the list YAML writes."""
     return _plain_copy(cfg)
 
 
@@ -559,8 +589,8 @@ _NAMES: dict[type, tuple[str, ...]] = {}  # a dataclass's field names
 
 
 def _plain_copy(obj: Any) -> Any:
-    """dataclasses.asdict's walk (a dataclass instance to a dict of its fields, lists, tuples
-    and dicts copied, anything else deep-copied), atoms returned as they are."""
+    """dataclasses.asdict's walk (a dataclass instance to a dict of its fields, lists and dicts
+    copied, a tuple as a list, anything else deep-copied), atoms returned as they are."""
     if type(obj) in _ATOMS:
         return obj
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
@@ -570,8 +600,8 @@ def _plain_copy(obj: Any) -> Any:
         return {name: _plain_copy(getattr(obj, name)) for name in names}
     if isinstance(obj, tuple) and hasattr(obj, "_fields"):  # a namedtuple
         return type(obj)(*[_plain_copy(v) for v in obj])
-    if isinstance(obj, (list, tuple)):
-        return type(obj)(_plain_copy(v) for v in obj)
+    if isinstance(obj, (list, tuple)):  # (a tuple too: a config's list-valued setting, which YAML writes as a list)
+        return [_plain_copy(v) for v in obj]
     if isinstance(obj, dict):
         return type(obj)((_plain_copy(k), _plain_copy(v)) for k, v in obj.items())
     return copy.deepcopy(obj)

@@ -290,8 +290,7 @@ def type_name(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
         if "choices" in meta:
             return f"one of {', '.join(meta['choices'])}"
         return "a string"
-    if origin is list:
-        (inner,) = typing.get_args(tp)
+    if (inner := item_type(tp)) is not None:  # (a list in YAML's words, though the config holds a tuple)
         plural = {int: "integers", float: "numbers", str: "strings", bool: "trues or falses"}.get(inner)
         if plural is None:
             plural = f"items each {type_name(inner)}"
@@ -301,14 +300,20 @@ def type_name(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
     raise TypeError(f"no words for the config type {tp}")  # (tests/test_config_messages.py tries every field)
 
 
+def item_type(tp: Any) -> Any:
+    """The type of the items of a list-valued setting of type ``tp``, a list in YAML held as a tuple
+    (``tuple[int, ...]``: ``int``; ``list[int]`` too); None for any other type."""
+    return typing.get_args(tp)[0] if typing.get_origin(tp) in (list, tuple) else None
+
+
 def type_hint(v: Any, tp: Any, meta: Mapping[str, Any]) -> str:
     """What to write instead, for a value of the wrong type: a float of a whole number where an
     integer goes (``1e9``: YAML reads a number with an exponent or a point as a float), a number
     or a bool where text goes."""
     wants = set(typing.get_args(tp)) | {tp}
-    lists = [a for a in wants if typing.get_origin(a) is list]
+    lists = [a for a in wants if item_type(a) is not None]
     items = v if isinstance(v, list) and lists else [v]
-    whole_int = int in wants or any(typing.get_args(a) == (int,) for a in lists)
+    whole_int = int in wants or any(item_type(a) is int for a in lists)
     floats = [x for x in items if isinstance(x, float) and math.isfinite(x) and x.is_integer()]
     if whole_int and floats and len(floats) == len([x for x in items if not isinstance(x, int)]):
         x = floats[0]

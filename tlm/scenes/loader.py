@@ -425,7 +425,7 @@ def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resol
     if res is None and "resolution" not in raw:
         raise InputError("required: [width, height] in whole pixels (or the config's resolution)", source=src,
                          key="resolution")
-    whole = isinstance(res, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in res)
+    whole = isinstance(res, (list, tuple)) and all(isinstance(x, int) and not isinstance(x, bool) for x in res)
     if not (whole and len(res) == 2):
         raise InputError(f"{res!r} is not [width, height] in whole pixels", source=res_src, key="resolution")
     check_resolution(res[0], res[1], res_src)
