@@ -96,7 +96,9 @@ def test_the_findings_say_null(tmp_path):
     (sw,) = read([rows_sweep(tmp_path / "L", "bsp.levels", [None, 6, 8])]).sweeps
     (text,) = sweep_findings(Inputs([], sweeps=[Sweep(sw.path, sw.spec, sw.rows, [])]))
     assert f"between its best value ({NULL_LEVELS}) and its worst (8)" in text, text
-    assert f"the best point is bsp.levels = {NULL_LEVELS}, arch.fifo_depth = 16 at" in text, text
+    # (30.01 and 30.16 FPS, 0.5% apart: a tie within 1%, h509)
+    assert (f"2 points tie within 1% as the best, at 30 to 30.2 FPS: bsp.levels = {NULL_LEVELS}, any "
+            "arch.fifo_depth.") in text, text
     assert "None" not in text
 
 

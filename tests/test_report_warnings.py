@@ -79,7 +79,8 @@ def test_warnings_are_grouped_counted_and_escaped():
     assert recorded(inputs) == [("frames too short", [f"r{i}" for i in range(10)]),
                                 ("a <b> & c", [f"r{i}" for i in range(1, 10, 2)])]
     page = warnings_html(inputs)
-    assert "10 of the 10 runs recorded 2 warnings" in page and "a &lt;b&gt; &amp; c" in page
+    assert ("10 of the 10 runs recorded 2 different warnings (results.json <code>warnings</code>; 15 in all)"
+            in page) and "a &lt;b&gt; &amp; c" in page
     assert "frames too short<span class=\"note\"> (every run)</span>" in page
     assert f"(5 of 10 runs: {', '.join(f'r{i}' for i in range(1, 2 * SHOWN_RUNS, 2))} and r9)" in page  # (h413)
     assert warnings_html(Inputs([Path(".")], runs=[run(0, [])])) == ""
@@ -125,7 +126,8 @@ def test_warnings_that_differ_only_in_numbers_are_one_item_with_the_others_below
     runs = [SimpleNamespace(label=f"p{i}", results={"warnings": lines}) for i, lines in enumerate(said)]
     page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
     head, _, items = page.partition("<ul>")
-    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>) of 3 kinds (lines that "
+    assert ("4 of the 5 runs recorded 5 different warnings (results.json <code>warnings</code>; 6 in all) of 3 "
+            "kinds (lines that "
             "differ only in their numbers are one kind, listed once);") in head
     first, _, rest = items.partition("<details>")
     assert first.startswith(f"<li>{depth.format(16, 3065)}<span class=\"note\"> (in 3 wordings that differ only "

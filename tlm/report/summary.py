@@ -12,8 +12,9 @@ hold nothing for it):
 4. What does quality cost? Image error against run time of the photon-map filters.
 5. What do the sweeps find? For each sweep, the factor that moves the frame rate most (its
    values compared like with like: within the combinations of the other factors that
-   finished with each of them) and its best point (or that none moves it); where the points measured
-   their image error, a factor that keeps the frame rate but changes the error says so (it does not
+   finished with each of them) and its best point (or that none moves it; points within 1% of its
+   frame rate tie with it, said so: :data:`~tlm.report.summary_effects.NEAR_TIE`); where the points
+   measured their image error, a factor that keeps the frame rate but changes the error says so (it does not
    "change nothing"), the best of points tied in frame rate is the one of least error, and "What
    quality costs" names the factor that moves the error most.
 6. What do the granularity and extreme studies find? The largest packet up to which every

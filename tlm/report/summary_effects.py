@@ -2,11 +2,13 @@
 the factor that moves the frame rate most, like with like, and its fastest point (the best where no slower
 point has a lower image error, else the point of the lowest error beside it: :func:`sweep_findings`); the
 factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
-be compared; the best of points tied in frame rate is the one of least image error where each measured it, points
-that differ only in factors that change nothing counted and those factors said as "any" (:func:`_span`); and
-per sweep whose points measured their image error, the factor that moves it most (:func:`error_factor`, said
-under "What quality costs"). The k-NN reference's points (``estimate.filter: knn`` in photon-map mode) are
-ranked by frame rate nowhere, their search not modelled (:func:`_ranked_points`, as the error-vs-cost report);
+be compared; points within 1% of the highest frame rate tie with it (:data:`NEAR_TIE`), said so with the factors
+that do not part them as "any" (:func:`_near`); the best of points tied in frame rate is the one of least image
+error where each measured it, points that differ only in factors that change nothing counted and those factors
+said as "any" (:func:`_span`); and per sweep whose points measured their image error, the factor that moves it
+most (:func:`error_factor`, said under "What quality costs"). The k-NN reference's points (``estimate.filter:
+knn`` in photon-map mode) are ranked by frame rate nowhere, their search not modelled (:func:`_ranked_points`, as
+the error-vs-cost report);
 a factor's values are written as YAML writes them (``cone``, not ``'cone'``: :func:`_as_yaml`).
 """
 
@@ -17,6 +19,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from tlm.arch.steady import STEADY_SPREAD
 from tlm.config_words import flow_text, listing
 from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, some
@@ -178,6 +181,14 @@ def _yaml_text(v) -> str:
 
 
 MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
+# Points whose frame rate is within this share of the highest are said as tied with it, "within 1%" (h509: a
+# point named best at 102.03 FPS for its arch.swap_cycles = 50 beside its twin of swaps of 2 at 101.84, 0.18%
+# apart). It is the model's own bound on a frame rate it reports as steady: an unsettled stream's estimate is
+# steady where its running mean moves by at most this share (tlm.arch.steady.STEADY_SPREAD; each point's
+# timing.throughput_estimate.spread), so a smaller difference between two points is not one the model tells.
+# (timing.granularity's share, tens of percent, bounds what whole packets change against packets of one ray in
+# every point at once: as a tolerance it would tie points the sweep does order; the warnings box says it.)
+NEAR_TIE = STEADY_SPREAD
 
 
 def _extreme(k: str, means: dict[str, float], m: float) -> list[str]:
@@ -203,22 +214,31 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     one error of them all is said as one point's), else each of them (those of the least error, tied), in sweep
     order (at most :data:`MAX_TIED_POINTS` named, the rest counted). Points that differ only in ``inert`` are
     not told apart but counted: "9 points tie as the best at 411 FPS: bsp.levels = 7, any arch.fifo_depth", the
-    factors that vary among them said as :func:`_span` says them. It is "the best point" where
+    factors that vary among them said as :func:`_span` says them. Points within :data:`NEAR_TIE` of the highest
+    frame rate and not at it tie with it as well, said so (:func:`_near`: "13 points tie within 1% as the best,
+    at 101 to 102 FPS: arch.pipelines = 8, any arch.swap_cycles, ..."), the least image error deciding among
+    them as among points at one frame rate. It is "the best point" where
     no point measured its image error or it has the lowest error of all (said so where not said as
     the least of the tied); else "the fastest point", with its error, and the point of the lowest
     error after it (:func:`_lowest`): a faster point of a larger error is not the best of all. ``of`` follows
     "the lowest image error" (`` of the points ranked``: the k-NN reference's left out, :func:`_ranked_points`)."""
     top = max(r["fps"] for r in rows)
     at_top = [r for r in rows if same_value(r["fps"], top)]
+    near = [r for r in rows if r["fps"] >= top * (1 - NEAR_TIE) or same_value(r["fps"], top)]
+    within = len(near) > len(at_top)  # (points near the highest, not at it: a tie within the tolerance)
+    if within:
+        at_top = near
     best = _grouped(at_top, factors, inert)
     tied, least = len(best), ""
+    digits = _digits([r["fps"] for r in at_top])  # (the frame rates near the best said apart: 101.8, 102)
     if tied > 1 and len(_measured([g[0] for g in best.values()])) == tied:  # (the least error of the tied decides)
         low = min(float(g[0][ERROR]) for g in best.values())
         kept = {key: g for key, g in best.items() if same_value(float(g[0][ERROR]), low)}
         if len(kept) < tied:  # (else the error tells none apart: each has it, said as one point's is)
             best = kept
-            least = (f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points tied at that "
-                     "frame rate")
+            least = (f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points "
+                     + (f"within {NEAR_TIE:.0%} of the highest frame rate ({top:.{digits}g} FPS)" if within else
+                        "tied at that frame rate"))
     firsts = [g[0] for g in best.values()]
     errs = [float(r[ERROR]) for r in _measured(rows)]
     lowest = min(errs) if errs else None
@@ -231,15 +251,52 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     own = ("" if least or not one else
            f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
            f", with the lowest image error{of} (relative MSE {lowest:.3g})" if lowest is not None else "")
-    if sum(map(len, best.values())) > len(best):  # (points that differ only in factors that change nothing: counted)
-        text = (f"{sum(map(len, best.values()))} points tie as the {word} at {top:.3g} FPS{own}"
+    at = _fps_range([x["fps"] for x in firsts], digits)
+    if within and len(best) > 1:  # (a tie within the tolerance: the factors that do not part them as "any")
+        text = (f"{sum(map(len, best.values()))} points tie within {NEAR_TIE:.0%} as the {word}, at {at}{own}"
+                f"{', ' + least if least else ''}: {_near(list(best.values()), rows, factors)}")
+    elif sum(map(len, best.values())) > len(best):  # (points that differ only in factors that change nothing)
+        text = (f"{sum(map(len, best.values()))} points tie as the {word} at {at}{own}"
                 f"{', ' + least if least else ''}: {_said(list(best.values()), rows, factors)}")
     elif len(where) == 1:
-        text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
+        text = f"the {word} point is {esc(where[0])} at {at}{own}{', ' + least if least else ''}"
     else:
-        text = (f"the {word} points, tied at {top:.3g} FPS{own}{' and at ' + least if least else ''}, "
+        text = (f"the {word} points, tied at {at}{own}{' and at ' + least if least else ''}, "
                 f"are {_named(where, factors)}")
     return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
+
+
+def _digits(fps: list[float]) -> int:
+    """The significant figures that say the frame rates ``fps`` apart: three, or as many more as part the lowest
+    and the highest (``101.8`` and ``102``, not ``102`` and ``102``); three where they are one (to 1e-9)."""
+    lo, hi = min(fps), max(fps)
+    return 3 if same_value(lo, hi) else next((d for d in range(3, 10) if f"{lo:.{d}g}" != f"{hi:.{d}g}"), 10)
+
+
+def _fps_range(fps: list[float], digits: int | None = None) -> str:
+    """Frame rates said at once: one (to 1e-9) ``411 FPS``, else the lowest to the highest (``101.8 to 102 FPS``),
+    to ``digits`` significant figures (:func:`_digits` of ``fps`` where not given)."""
+    lo, hi = min(fps), max(fps)
+    d = _digits(fps) if digits is None else digits
+    return f"{hi:.{d}g} FPS" if same_value(lo, hi) else f"{lo:.{d}g} to {hi:.{d}g} FPS"
+
+
+def _near(groups: list[list[dict]], rows: list[dict], factors: list[str]) -> str:
+    """Points tied within :data:`NEAR_TIE` (``groups``: those that differ only in factors that change nothing),
+    escaped: as :func:`_said` says tied points, each group with its frame rate where they are named one by one
+    (not every combination of their values, at most :data:`MAX_TIED_POINTS` groups); of more groups at once
+    (:func:`_span`: the factors that do not part them as ``any k``), with how many of the combinations of those
+    values they are (one not among them ran more than :data:`NEAR_TIE` slower, or did not run)."""
+    points = [r for g in groups for r in g]
+    whole, every = _span(points, rows, factors)
+    if every:
+        return esc(whole)
+    if len(groups) <= MAX_TIED_POINTS:
+        digits = _digits([g[0]["fps"] for g in groups])
+        return _said(groups, rows, factors, [f" at {_fps_range([g[0]['fps']], digits)}" for g in groups])
+    combos = int(np.prod([len({repr(r.get(k)) for r in points}) for k in factors]))
+    got = len({tuple(repr(r.get(k)) for k in factors) for r in points})
+    return f"{esc(whole)} ({got} of the {combos} combinations of these values)"
 
 
 def _grouped(points: list[dict], factors: list[str], inert: list[str]) -> dict[tuple, list[dict]]:

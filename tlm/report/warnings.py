@@ -255,7 +255,11 @@ def warnings_html(inputs: Inputs) -> str:
     where = (esc(listing(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
              if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
              listing(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
-    n = len(studies) + len(kept)  # (== the lines its items say)
+    n = len(studies) + len(kept)  # (== the lines its items say: each once, however many recorded it)
+    said_all = sum(len(set(labels)) for _, labels in kept) + sum(len(whose) for _, whose, _ in studies)
+    count = (f"{n} warning{'s' if n > 1 else ''} ({where})" if said_all == n else  # (each line by one: a count)
+             f"1 warning, the same in each ({where})" if n == 1 else
+             f"{n} different warnings ({where}; {said_all} in all)")  # (h509: 89 lines of 144 runs, not 89 warnings)
     kinds = ("" if len(items) == n else f" of {len(items)} kind{'s' * (len(items) > 1)} (lines that differ only in "
              "their numbers are one kind, listed once)")  # (:func:`folded`)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
@@ -264,8 +268,8 @@ def warnings_html(inputs: Inputs) -> str:
             + (f"warning{'s' * (len(rest) > 1)}" if hidden == len(rest) else
                f"kind{'s' * (len(rest) > 1)}, {hidden} warnings")
             + "</summary><ul>" + "".join(item for item, _ in rest) + "</ul></details>") if rest else ""
-    return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
-            f"warning{'s' if n > 1 else ''} ({where}){esc(kinds)}; read what is drawn "
+    return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {count}'
+            f"{esc(kinds)}; read what is drawn "
             "from them with these in mind:</p><ul>" + "".join(item for item, _ in shown) + "</ul>" + more + "</div>")
 
 
