@@ -79,7 +79,8 @@ File format::
 
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
 pandas; in the CSV a null of a setting's column, :data:`SETTING_COLUMNS`, is ``null``, any other
-an empty cell), ``reference.json`` (the reference used: its metadata, ``reference_converged``
+an empty cell), ``reference.json`` (the reference used: its metadata, its ``photons`` a round, ``k_nearest`` and
+``rounds`` among them, its ``resolution`` [width, height], ``reference_converged``
 and whether it was ``computed`` by this study; ``reference_black`` and ``truth_black``, where the reference or
 the ground truth is black and no relative error can be measured; and the study's ``warnings``, each line it
 said once, which ``tlm report`` lists in its warnings box), ``config.resolved.yaml`` and
@@ -488,7 +489,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
                          finish=lambda rows, _tmp: blur.said(say, rows),
-                         files=lambda rows: {"reference.json": {"key": key, **ref_meta,
+                         files=lambda rows: {"reference.json": {"key": key, **ref_meta,  # (its resolution: h507)
+                                                                "resolution": [scene.camera.width, scene.camera.height],
                                                                 "reference_converged": converged,
                                                                 "computed": computed, **black,
                                                                 "warnings": list(dict.fromkeys(said))},

@@ -312,7 +312,9 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
     frame = pmap() if image is not None else None  # (read only where there is a reference to measure it against)
     if image is not None and frame is None:
         return None
-    error = run.error_against(key, settings, frame, image, meta)
+    shape = ([scene.camera.width, scene.camera.height] if scene is not None else  # (the reference's, its key's)
+             (got.summary.get("scene") or {}).get("resolution"))
+    error = run.error_against(key, settings, frame, image, meta, resolution=shape if isinstance(shape, list) else None)
     summary = {**got.summary, "error": error,
                "warnings": [*(got.summary.get("warnings") or []),
                             *reference_warnings(error, cfg, got.summary.get("photons"),

@@ -384,6 +384,29 @@ def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | N
     return {"rmse": float(np.sqrt(np.mean(diff**2))), "rel_mse": sq / ref2 if ref2 > 0 else None}
 
 
+def reference_named(key, photons=None, k_nearest=None, rounds=None, resolution=None, standard_error=None) -> str:
+    """One line naming the photon-map reference an error is measured against (h507), as the reports show it:
+    ``reference 94cd... (4,000 photons a round, k_nearest 100, 88 rounds, relative standard error 0.0198, 32x32
+    pixels)``: ``photons`` a round (resolved: a number), ``rounds`` averaged, ``resolution`` [width, height]. What
+    is None or not a number (a run or study written before it was recorded) is left out."""
+    def number(v) -> float | None:
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) else None
+
+    def whole(v) -> int | None:
+        return None if number(v) is None else int(v)
+
+    size = resolution if isinstance(resolution, (list, tuple)) and len(resolution) == 2 else (None, None)
+    width, height = (whole(v) for v in size)
+    rse = number(standard_error)
+    parts = [f"{whole(photons):,} photons a round" if whole(photons) is not None else "",
+             f"k_nearest {whole(k_nearest)}" if whole(k_nearest) is not None else "",
+             f"{whole(rounds)} rounds" if whole(rounds) is not None else "",
+             f"relative standard error {rse:.3g}" if rse is not None else "",
+             f"{width}x{height} pixels" if width is not None and height is not None else ""]
+    said = ", ".join(w for w in parts if w)
+    return f"reference {key}" + (f" ({said})" if said else "")
+
+
 @dataclass
 class Found:
     """A reference looked up (and perhaps computed) for a frame: ``image`` (pixels, 3) and

@@ -330,11 +330,13 @@ def photon_error(frame: Frame, pmap: np.ndarray, compute: bool = False, progress
     cached now when none is (``progress``: its bar on stderr; ``say``: a line before and
     after). ``reference_seconds``: what computing it took, when it was computed now."""
     found = ensure_reference(frame, compute=compute, bar=progress, say=say)
-    return error_against(found.key, found.settings, pmap, found.image, found.meta, found.seconds)
+    cam = frame.scene.camera
+    return error_against(found.key, found.settings, pmap, found.image, found.meta, found.seconds,
+                         [cam.width, cam.height])
 
 
 def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray | None, meta: dict | None,
-                  seconds: float | None = None) -> dict:
+                  seconds: float | None = None, resolution: list[int] | None = None) -> dict:
     """``results.json`` ``error`` of the photon-map frame ``pmap`` (pixels, 3) against the reference ``key``
     (``image`` and ``meta``: None where none is cached; ``settings``: the run's
     :class:`~tlm.experiments.reference_cache.ReferenceSettings`, whose stopping rule judges it;
@@ -344,7 +346,10 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
     (``npy``), which tells a reference computed again under the same key (``tlm reference --force``, other
     ``reference.max_rounds``) from this one (:func:`tlm.experiments.sweep_reference.reference_now`): of one computed
     now too, as it was cached (:func:`~tlm.experiments.reference.ensure_reference`; where the cache could not
-    take it, that of the ``reference.npy`` it would have been); None where ``meta`` holds none."""
+    take it, that of the ``reference.npy`` it would have been); None where ``meta`` holds none. What the error is
+    against (h507): ``reference_photons`` (its photons a round, resolved: the scene's where ``reference.photons`` is
+    null), ``reference_k_nearest``, ``reference_rounds`` and ``reference_resolution`` (``resolution``, [width,
+    height]: the run's, which the key holds; None where the caller does not give it)."""
     if image is None or meta is None:
         return {"reference": key, "available": False, "hint": "run 'tlm reference CONFIG' to compute and cache it"}
     npy = meta.get("npy")
@@ -352,7 +357,9 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
             "reference_converged": meets_tolerance(meta, settings), "reference_rounds": meta.get("rounds"),
             "reference_standard_error": meta.get("relative_standard_error"),
             "reference_seconds": None if seconds is None else round(seconds, 3),
-            "reference_sha256": npy.get("sha256") if isinstance(npy, dict) else None}
+            "reference_sha256": npy.get("sha256") if isinstance(npy, dict) else None,
+            "reference_photons": settings.photons, "reference_k_nearest": settings.k_nearest,
+            "reference_resolution": None if resolution is None else [int(v) for v in resolution]}
 
 
 def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None,

@@ -18,7 +18,8 @@ A run whose photon-map frame was measured against its reference (``results.json`
 :mod:`tlm.experiments.reference`; one that did not converge, ``reference_converged`` false, is said
 "NOT converged" in the figure's title, caption and the lead) also gets a figure of
 that frame beside its difference from the reference (ours minus the reference in
-luminance), titled with the relative MSE and RMSE, which the section's lead repeats. The
+luminance), titled with the relative MSE and RMSE, which the section's lead repeats with the reference in one
+line, its key, photons a round, k_nearest, rounds and resolution (:func:`reference_line`), as the caption does. The
 difference is read back from the run's ``images/pmap_error.png`` (the blue and red of a
 run written before 2026-11-29 too) and drawn in
 :data:`tlm.experiments.reference.DIFFERENCE_COLOURS`, with its colour bar: dark blue
@@ -216,6 +217,17 @@ def _error_words(error: dict) -> str:
     return f"relative MSE {rel}, RMSE {error['rmse']:.3g}"
 
 
+def reference_line(error: dict) -> str:
+    """The reference a run's ``results.json`` ``error`` is against, in one line (h507): its key, photons a round,
+    k_nearest, rounds, relative standard error and resolution
+    (:func:`~tlm.experiments.reference.reference_named`; a run written before these were kept names fewer)."""
+    from tlm.experiments.reference import reference_named
+
+    return reference_named(error.get("reference"), error.get("reference_photons"), error.get("reference_k_nearest"),
+                           error.get("reference_rounds"), error.get("reference_resolution"),
+                           error.get("reference_standard_error"))
+
+
 def _reference_words(error: dict) -> str:
     """The reference a run's photon-map error is against: ``its converged reference``, or where
     it did not converge (``reference_converged`` not true) ``its reference (NOT converged)``."""
@@ -291,9 +303,7 @@ def error_figure(run: Run, out: Path):
              "99th percentile of |difference|); the grey rises from one end to the other, so a greyscale print "
              "keeps the sign")
     caption = (f"Left: the run's photon-mapped term (images/pmap.png, the run's exposure). Right: its luminance "
-               f"minus the reference's (reference {error.get('reference')}, {state}, "
-               f"{error.get('reference_rounds')} rounds, relative standard error "
-               f"{error.get('reference_standard_error') or 0.0:.3g}), {drawn}. The reference is "
+               f"minus that of the {state} {reference_line(error)}, {drawn}. The reference is "
                "the pixel's box-filter integral: a run of render.spp 1 samples the pixel's centre, so edges "
                "show aliasing too.")
     fig.suptitle(f"{run.label}\nPMap frame against {_reference_words(error)}: {_error_words(error)}", fontsize=9)
@@ -431,7 +441,7 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
         if not error.get("available"):
             section.notes.append(f"{run.label}: {_unmeasured(run, error)}")
             continue
-        said.append(f"{esc(run.label)}: {esc(_error_words(error))}"
+        said.append(f"{esc(run.label)}: {esc(_error_words(error))} against {esc(reference_line(error))}"
                     + ("" if error.get("reference_converged") else " (its reference NOT converged)"))
         converged.append(bool(error.get("reference_converged")))
         if len(said) > MAX_ERROR_FIGURES:

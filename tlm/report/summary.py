@@ -384,6 +384,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         floor_line,
         log_floor,
         reference_converged,
+        reference_line,
         series_styles,
         truth_noise_words,
         unmodelled_cost,
@@ -492,9 +493,12 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         spp = lo.get("truth_spp")
         against = " against Mitsuba's path tracer" + (f" ({int(spp):,} spp)" if _number(spp) and spp > 0 else "")
         noise = f" {esc(words)}" if (words := truth_noise_words(spp)) else ""
+        named = ""
     else:
         against = " against our reference" + (" (NOT converged)" if reference_converged(st) is False else "")
         noise = ""
+        # (the reference in one line: its key, photons a round, k_nearest, rounds and resolution, h507)
+        named = f" That error is against {esc(reference_line(st))}." if reference_line(st) else ""
     # (one seed's winner is one sample: said as such; among the filters ranked, as the lowest error above is)
     seeds = _seeds_words([r for r in rows if not unmodelled_cost(r)], err, series_of)
     text = (f"<b>What quality costs:</b> the lowest error{' of a filter whose search is modelled' * bool(knn)} is "
@@ -506,7 +510,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             + (f"; the k-NN reference, not ranked as its frame time leaves out its search (not modelled): "
                f"{', '.join(refs)}" if refs else "")
             + (f" ({_count(left, 'row')} with a relative MSE below 0 or not a finite number left out)" if left
-               else "") + "." + esc(seeds) + noise + (f" {said}" if said else "")
+               else "") + "." + named + esc(seeds) + noise + (f" {said}" if said else "")
             + points_error(inputs) + error_factor(inputs))
     return text, f
 

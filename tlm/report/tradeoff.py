@@ -14,8 +14,9 @@
     model charges its k photons per query but not its search (:func:`unmodelled_cost`); on the host
     wall time figure, measured time, it is a filter like the others. A reference
     that did not converge (``reference.json``'s ``reference_converged``, or the rows') is said so in
-    the axis label, title and caption (:func:`reference_words`). Titles that the study's ``--set``
-    makes long are wrapped (:func:`~tlm.report.common.wrap_title`). An axis is log where its positive
+    the axis label, title and caption (:func:`reference_words`); each caption names the reference in one line,
+    its key, photons a round, k_nearest, rounds and resolution (:func:`reference_line`, h507). Titles that the
+    study's ``--set`` makes long are wrapped (:func:`~tlm.report.common.wrap_title`). An axis is log where its positive
     values span a decade (the RMSE against the ground truth: where one is positive); there a value of 0
     is drawn on a dotted line a decade below the least positive one (:func:`log_floor`), one below 0 is
     left off, and the caption names both by their ``point`` in rows.csv (:func:`off_log_words`). A black
@@ -68,6 +69,7 @@ from tlm.report.tradeoff_studies import (  # (what the section reads of a study 
     granularity_per_frame,
     granularity_points,
     granularity_same_rows,
+    reference_line,
     reference_words,
     study_names,
     wall_time_caption,
@@ -317,7 +319,8 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
     caption = ("Image RMSE in linear radiance. Filled: the whole composite (every planned frame) against "
                "Mitsuba 3's path tracer" + (f" ({spp} spp)" if spp else "") + ", over the pixels away from the "
                "lights seen directly; hollow: the photon-map frame alone against our own "
-               + ("converged k-NN reference" if not unconverged else "k-NN reference, NOT converged")
+               + ("converged k-NN " if not unconverged else "k-NN ") + (reference_line(study) or "reference")
+               + (", NOT converged" if unconverged else "")  # (its key, photons a round, k, rounds, size: h507)
                + ", over every pixel; a vertical line joins a point's two errors. They are errors of "
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
                "wrong, not the model's bias alone. " + (f"{unconverged} " if unconverged else "")
@@ -424,6 +427,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
                + (f"ringed and numbered (named in the key): the {count(int(front.sum()), 'point')} of the Pareto "
                   "front." if front.any() else "no Pareto front: the reference is black." if black
                   else "no Pareto front: no point's frame time is modelled in full."))
+    if reference_line(study):  # (what the RMSEs are against: its key, photons a round, k, rounds, resolution, h507)
+        caption += f" RMSE against {reference_line(study)}."
     if black:
         caption += " " + BLACK_REFERENCE
     if apart.any():

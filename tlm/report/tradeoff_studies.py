@@ -1,5 +1,6 @@
 """What the error-against-run-time section (:mod:`tlm.report.tradeoff`) reads of a study and says of it without a
 figure: an error-vs-cost study's reference, converged or not (:func:`reference_converged`, :func:`reference_words`),
+named in one line (:func:`reference_line`),
 and black or not with its ground truth (:func:`black_images`, :func:`black_words`), the studies' short names
 (:func:`study_names`), what its host wall time holds (:func:`wall_time_caption`); a granularity study's label, its
 frame counts (:func:`granularity_per_frame`), its own notes (:func:`granularity_same_rows`) and its points
@@ -55,6 +56,20 @@ def reference_words(study: Study) -> tuple[str, str]:
     return ("the reference (NOT converged)",
             f"The reference did NOT converge ({how or 'reference.json'}): each RMSE against it includes the "
             "reference's own noise.")
+
+
+def reference_line(study: Study) -> str:
+    """The reference an error-vs-cost study's ``rmse`` and ``rel_mse`` are against, in one line (h507): its key,
+    photons a round, k_nearest, rounds, relative standard error and resolution, from its ``reference.json``
+    (:func:`~tlm.experiments.reference.reference_named`; a study written before its resolution was kept names
+    fewer); "" where it has none."""
+    from tlm.experiments.reference import reference_named
+
+    ref = study.meta.get("reference") if isinstance(study.meta, dict) else None
+    if not isinstance(ref, dict) or not isinstance(ref.get("key"), str):
+        return ""
+    return reference_named(ref["key"], *(ref.get(k) for k in ("photons", "k_nearest", "rounds", "resolution",
+                                                                "relative_standard_error")))
 
 
 def black_images(study: Study) -> tuple[bool, bool]:
