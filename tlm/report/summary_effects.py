@@ -3,7 +3,8 @@ the factor that moves the frame rate most, like with like, and its fastest point
 point has a lower image error, else the point of the lowest error beside it: :func:`sweep_findings`); the
 factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
 be compared; points within 1% of the highest frame rate tie with it (:data:`NEAR_TIE`), said so with the factors
-that do not part them as "any" (:func:`_near`); the best of points tied in frame rate is the one of least image
+that do not part them as "any" (:func:`_near`), and a factor whose values' mean frame rates are within 1% has no
+best value (said by how much it moves them); the best of points tied in frame rate is the one of least image
 error where each measured it, points that differ only in factors that change nothing counted and those factors
 said as "any" (:func:`_span`); and per sweep whose points measured their image error, the factor that moves it
 most (:func:`error_factor`, said under "What quality costs"). The k-NN reference's points (``estimate.filter:
@@ -229,17 +230,22 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     if within:
         at_top = near
     best = _grouped(at_top, factors, inert)
-    tied, least = len(best), ""
-    digits = _digits([r["fps"] for r in at_top])  # (the frame rates near the best said apart: 101.8, 102)
+    tied, low = len(best), None
     if tied > 1 and len(_measured([g[0] for g in best.values()])) == tied:  # (the least error of the tied decides)
         low = min(float(g[0][ERROR]) for g in best.values())
         kept = {key: g for key, g in best.items() if same_value(float(g[0][ERROR]), low)}
         if len(kept) < tied:  # (else the error tells none apart: each has it, said as one point's is)
             best = kept
-            least = (f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points "
-                     + (f"within {NEAR_TIE:.0%} of the highest frame rate ({top:.{digits}g} FPS)" if within else
-                        "tied at that frame rate"))
+        else:
+            low = None
     firsts = [g[0] for g in best.values()]
+    # (the frame rates near the best said apart, 101.8 and 102, and those of the points kept among them, 101.81 and
+    # 101.84, not "101.8 to 101.8": h512)
+    digits = max(_digits([r["fps"] for r in at_top]), _digits([r["fps"] for r in firsts]))
+    least = ("" if low is None else
+             f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points "
+             + (f"within {NEAR_TIE:.0%} of the highest frame rate ({top:.{digits}g} FPS)" if within else
+                "tied at that frame rate"))
     errs = [float(r[ERROR]) for r in _measured(rows)]
     lowest = min(errs) if errs else None
     fastest = lowest is not None and not all(_number(r.get(ERROR)) and same_value(float(r[ERROR]), lowest)
@@ -254,7 +260,7 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     at = _fps_range([x["fps"] for x in firsts], digits)
     if within and len(best) > 1:  # (a tie within the tolerance: the factors that do not part them as "any")
         text = (f"{sum(map(len, best.values()))} points tie within {NEAR_TIE:.0%} as the {word}, at {at}{own}"
-                f"{', ' + least if least else ''}: {_near(list(best.values()), rows, factors)}")
+                f"{', ' + least if least else ''}: {_near(list(best.values()), rows, factors, digits)}")
     elif sum(map(len, best.values())) > len(best):  # (points that differ only in factors that change nothing)
         text = (f"{sum(map(len, best.values()))} points tie as the {word} at {at}{own}"
                 f"{', ' + least if least else ''}: {_said(list(best.values()), rows, factors)}")
@@ -263,7 +269,8 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     else:
         text = (f"the {word} points, tied at {at}{own}{' and at ' + least if least else ''}, "
                 f"are {_named(where, factors)}")
-    return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
+    near = {id(r): digits for r in at_top} if within else None  # (a near point's rate as the range says it)
+    return f"{text}; {_lowest(rows, factors, inert, lowest, of, near)}." if fastest else f"{text}."
 
 
 def _digits(fps: list[float]) -> int:
@@ -281,18 +288,19 @@ def _fps_range(fps: list[float], digits: int | None = None) -> str:
     return f"{hi:.{d}g} FPS" if same_value(lo, hi) else f"{lo:.{d}g} to {hi:.{d}g} FPS"
 
 
-def _near(groups: list[list[dict]], rows: list[dict], factors: list[str]) -> str:
+def _near(groups: list[list[dict]], rows: list[dict], factors: list[str], digits: int | None = None) -> str:
     """Points tied within :data:`NEAR_TIE` (``groups``: those that differ only in factors that change nothing),
     escaped: as :func:`_said` says tied points, each group with its frame rate where they are named one by one
     (not every combination of their values, at most :data:`MAX_TIED_POINTS` groups); of more groups at once
     (:func:`_span`: the factors that do not part them as ``any k``), with how many of the combinations of those
-    values they are (one not among them ran more than :data:`NEAR_TIE` slower, or did not run)."""
+    values they are (one not among them ran more than :data:`NEAR_TIE` slower, or did not run). Their frame rates
+    to ``digits`` significant figures (:func:`_digits` of the groups' where not given)."""
     points = [r for g in groups for r in g]
     whole, every = _span(points, rows, factors)
     if every:
         return esc(whole)
     if len(groups) <= MAX_TIED_POINTS:
-        digits = _digits([g[0]["fps"] for g in groups])
+        digits = _digits([g[0]["fps"] for g in groups]) if digits is None else digits
         return _said(groups, rows, factors, [f" at {_fps_range([g[0]['fps']], digits)}" for g in groups])
     combos = int(np.prod([len({repr(r.get(k)) for r in points}) for k in factors]))
     got = len({tuple(repr(r.get(k)) for k in factors) for r in points})
@@ -397,17 +405,22 @@ def _named(where: list[str], factors: list[str], after: list[str] | None = None)
                     for i, w in enumerate(where)], MAX_TIED_POINTS)
 
 
-def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, of: str = "") -> str:
+def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, of: str = "",
+            near: dict[int, int] | None = None) -> str:
     """The point of the lowest image error ``low`` among ``rows`` and its frame rate, in words; those
     that tie (to 1e-9), each, as :func:`_best_points` names the tied (not escaped twice), points that differ only
-    in the factors ``inert`` counted (:func:`_said`)."""
+    in the factors ``inert`` counted (:func:`_said`). A frame rate to three significant figures, that of a point
+    tied within :data:`NEAR_TIE` to those ``near`` gives it by the point's ``id`` (as the tie's range said it)."""
+    def rate(r: dict) -> str:
+        return f"{r['fps']:.{(near or {}).get(id(r), 3)}g}"
+
     points = _grouped([r for r in _measured(rows) if same_value(float(r[ERROR]), low)], factors, inert)
     n = sum(map(len, points.values()))
     if n == 1:
         r = next(iter(points.values()))[0]
         return f"the point of the lowest image error{of} (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
-               f"{r['fps']:.3g} FPS"
-    fps = [f" at {g[0]['fps']:.3g} FPS" for g in points.values()]
+               f"{rate(r)} FPS"
+    fps = [f" at {rate(g[0])} FPS" for g in points.values()]
     if n > len(points):  # (points that differ only in factors that change nothing: counted, said at once where one can)
         whole, every = _span([r for g in points.values() for r in g], rows, factors)
         if every and len(set(fps)) == 1:
@@ -534,8 +547,13 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             text += f"{esc(k)} moves the frame rate most"
             if along[k]:
                 text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
-            text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi, n)}) and its "
-                     f"worst ({_values(lo, n)}), averaged over ")
+            if ratio * (1 - NEAR_TIE) <= 1:  # (its values' means within NEAR_TIE: they tie, as points there do: h512)
+                text += (f", by {1 - 1 / ratio:.2%} between its value{'s' if len(hi) > 1 else ''} of the highest "
+                         f"mean ({_values(hi, n)}) and of the lowest ({_values(lo, n)}), within {NEAR_TIE:.0%} (a "
+                         f"tie, no best value, as for points within {NEAR_TIE:.0%} of the best), averaged over ")
+            else:
+                text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi, n)}) and "
+                         f"its worst ({_values(lo, n)}), averaged over ")
             text += ("the other factors; " if not left[k] else
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
                      f"ok points{' ranked' * any(unranked)} left out for that); ")
