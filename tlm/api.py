@@ -221,9 +221,9 @@ def to_srgb(radiance: Any, exposure: float | None = None) -> np.ndarray:
 
     run = sys.modules.get("tlm.experiments.run")  # (imported wherever a RenderResult was made)
     if run is not None and isinstance(radiance, run.RenderResult):
+        res, radiance = radiance, radiance.composite  # (made once: res.exposure would make it again)
         if exposure is None:  # (the run's own: images/composite.png's pixels, whatever the radiance holds)
-            return to_srgb8(radiance.composite, radiance.exposure)
-        radiance = radiance.composite
+            return to_srgb8(radiance, run.image_exposure(res, radiance)[0])
     given, radiance = radiance, np.asarray(radiance)
     if radiance.ndim < 1 or radiance.shape[-1] != 3 or radiance.dtype.kind not in "iuf":
         what = (f"an array of shape {radiance.shape} and dtype {radiance.dtype}" if radiance.dtype != object

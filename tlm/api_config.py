@@ -251,6 +251,8 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     _existing_folder(base, "base")
     if isinstance(config, Config):
         _own_base(config, base, "the Config's")
+        settings = checked(config.settings)  # (a Config of a pickle, made by a tlm before the checks: checked now)
+        config = config if settings is config.settings else replace(config, settings=settings)
         return _updated(config, more, via) if more else config
     if isinstance(config, RunConfig):
         out = Config(config, Path(base) if base is not None else Path.cwd(), via=via)

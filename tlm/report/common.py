@@ -367,28 +367,30 @@ def figure_output(formats: str | Iterable[str] | None = None, dpi=None):
 # the settings a report keeps as the caller set them (by prefix): not how a figure looks (as style.use("default"))
 _KEPT_RC = ("backend", "interactive", "toolbar", "timezone", "date.epoch", "figure.max_open_warning",
             "figure.raise_window", "savefig.directory", "tk.window_focus", "docstring.hardcopy", "webagg.")
-_STYLED: list = []  # the one rc_context of the reports within report_style now, once per report
+_STYLED: list = []  # {setting: (the caller's value, the report's)} once per report within report_style now
 _STYLING = threading.Lock()
 
 
 @contextlib.contextmanager
 def report_style():
-    """Within it (:func:`figure_output`), figures are made, drawn and saved with matplotlib's defaults and
-    :data:`VECTOR_RC` whatever the caller set (:data:`_KEPT_RC` aside): a report looks the same whoever writes it.
-    The caller's settings are back at its end (the last end of several reports written in one process's threads)."""
+    """Within it (:func:`figure_output`), figures are made, drawn and saved in matplotlib's defaults and
+    :data:`VECTOR_RC` whatever the caller set (:data:`_KEPT_RC` aside), the process's (a figure another thread makes
+    meanwhile too); the caller's are back at the last end of the reports in its threads, those set meanwhile kept."""
+    now = matplotlib.rcParams
     with _STYLING:
         if not _STYLED:
             with warnings.catch_warnings():  # (a deprecated setting's default set without its warning, as rcdefaults)
                 warnings.simplefilter("ignore", matplotlib.MatplotlibDeprecationWarning)
-                rc = {k: v for k, v in matplotlib.rcParamsDefault.items() if not k.startswith(_KEPT_RC)}
-                (context := matplotlib.rc_context({**rc, **VECTOR_RC})).__enter__()
-        _STYLED.append(_STYLED[0] if _STYLED else context)
+                rc = {k: v for k, v in matplotlib.rcParamsDefault.items() if not k.startswith(_KEPT_RC)} | VECTOR_RC
+                theirs = {k: dict.get(now, k) for k in rc}
+                now.update(rc)
+        _STYLED.append(_STYLED[0] if _STYLED else {k: (theirs[k], dict.get(now, k)) for k in rc})
     try:
         yield
     finally:
         with _STYLING:
-            if len(_STYLED) == 1:
-                _STYLED[0].__exit__(None, None, None)
+            if len(_STYLED) == 1:  # (a setting set meanwhile holds another object than the report's: kept)
+                dict.update(now, {k: theirs for k, (theirs, ours) in _STYLED[0].items() if dict.get(now, k) is ours})
             _STYLED.pop()
 
 
@@ -474,11 +476,10 @@ class Figure:
 class Section:
     """A numbered part of the report: figures, optional HTML (tables), or why it is absent.
 
-    ``absent`` is the reason the section has nothing to show for these inputs (the
-    report says so instead of dropping the section); ``notes`` are one-line remarks
-    (what was left out of a figure and why). The page shows ``lead`` and the first
-    ``shown`` figures; the other figures, the tables (``html``, unless ``html_open``)
-    and the notes are behind ``<details>`` so that the page reads in a few screens.
+    ``absent`` is the reason the section has nothing to show for these inputs (the report says so instead of dropping
+    the section); ``notes`` are one-line remarks (what was left out of a figure and why). The page shows ``lead`` and
+    the first ``shown`` figures; the other figures, the tables (``html``, unless ``html_open``) and the notes are behind
+    ``<details>`` so that the page reads in a few screens.
     """
 
     key: str
