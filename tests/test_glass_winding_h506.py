@@ -2,8 +2,9 @@
 into itself from the side ``cross(V1 - V0, V2 - V0)`` points to, so a ball whose faces are reversed
 rendered its refract frame 0.02x to 20x per pixel off the right one's, its caustic's peak 3.46 ->
 0.075, and no warning said why. Now one line names the part, its material and the fix; open glass
-(a water surface, a pane), a sheet of two sides, a hollow body, a body wound both ways or split over
-parts, and opaque parts are not named, and the built-in scenes with glass stay silent."""
+(a water surface, a pane), a sheet of two sides, a hollow body, a body wound both ways, and opaque
+parts are not named (h511: a body split over parts is, by all of them), and the built-in scenes with
+glass stay silent."""
 
 from __future__ import annotations
 
@@ -85,8 +86,8 @@ def test_an_inside_out_glass_ball_is_named_by_the_run(tmp_path, capsys, cache):
 def test_only_a_closed_glass_part_wound_inwards_is_named(tmp_path):
     """One scene: the inside-out glass box is named; not the same box without its first face (open: a
     water surface), a single pane, a triangle of two sides (closed, enclosing nothing), a hollow box (its
-    cavity wound to face into it), the inside-out box with one face turned back (not wound one way), the
-    inside-out box split over two parts, nor an inside-out opaque box."""
+    cavity wound to face into it), the inside-out box with one face turned back (not wound one way), nor an
+    inside-out opaque box; the inside-out box split over two parts is named by both (h511: it was not)."""
     cube = aabox((-0.2, 0.0, -0.2), (0.2, 0.4, 0.2))
     at = lambda tri, x: np.asarray(tri) + np.array([x, 0.0, 2.0])  # noqa: E731 (side by side)
     sheet = np.array([[[-0.2, 0.5, -0.2], [0.2, 0.5, -0.2], [0.0, 0.5, 0.2]]])
@@ -99,8 +100,9 @@ def test_only_a_closed_glass_part_wound_inwards_is_named(tmp_path):
              "one_off": one_off, "half_a": _reversed(at(cube, 3.0))[:6], "half_b": _reversed(at(cube, 3.0))[6:],
              "opaque": _reversed(at(cube, 4.0))}
     scene = load_scene(str(_scene(tmp_path, "many", parts, [p for p in parts if p != "opaque"])))
-    said = [w for w in checks.file_warnings(scene) if SAID in w]
-    assert len(said) == 1 and said[0].startswith("part 'inside_out' (glass: material 'g') " + SAID), said
+    said = [w for w in checks.file_warnings(scene) if "a closed surface that faces inwards" in w]
+    assert len(said) == 2 and said[0].startswith("part 'inside_out' (glass: material 'g') " + SAID), said
+    assert said[1].startswith("parts 'half_a' and 'half_b' (glass: material 'g') are a closed surface"), said
 
 
 BUILT_IN = {"cornell": ["glass_object"], "cornell-water": ["rightSphere"], "cornell-sphere": ["rightSphere"],

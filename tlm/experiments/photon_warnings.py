@@ -18,12 +18,13 @@ from tlm.config import RunConfig
 
 # the share of the lights' power past which the line is said: 5%, past twice the relative standard error of its mean
 # that a reference may keep (reference.tolerance 0.02), so the loss (the photon-map term darker by about the share or
-# more: room's 2.8% for 2.39%) cannot pass for the reference's noise; configs/cornell-water.yaml raised its
-# photons.max_bounces to 16 for the 5.96% its scene keeps at 8 ("8 hits lose ~7 %"). The shares at the defaults
-# (h505; 8 bounces): ring 0.0001% (configs/ring.yaml's 300000 photons 0.0013%), thesis/ring 0.01%, conference 0.44%,
-# cornell-box 0.44%, cornell-sphere 0.91%, cornell 1.06% (configs/cornell.yaml, cornell_pmap.yaml: its pmap term 1.1%
-# darker than at 30 bounces, its composite 0.27%), thesis/room 2.09% (configs/thesis.yaml), room 2.39%
-# (configs/room.yaml: its composite 0.8% darker, h500), cornell-water 5.96% (configs/cornell-water.yaml: 1.15%). So
+# more: room's 2.8% for 2.35%) cannot pass for the reference's noise; configs/cornell-water.yaml raised its
+# photons.max_bounces to 16 for the 5.84% its scene keeps at 8 ("8 hits lose ~7 %"). The shares at the defaults
+# (h505, the global group's alone since h511; 8 bounces): ring 0% (configs/ring.yaml's 300000 photons 0.0007%),
+# thesis/ring 0.007%, conference 0.44%, cornell-box 0.44%, cornell-sphere 0.90%, cornell 1.05% (configs/cornell.yaml,
+# cornell_pmap.yaml: its pmap term 1.1% darker than at 30 bounces, its composite 0.27%), thesis/room 2.01%
+# (configs/thesis.yaml), room 2.35% (configs/room.yaml: its composite 0.8% darker, h500), cornell-water 5.84%
+# (configs/cornell-water.yaml at 400,000 of its 2,000,000 photons: 1.09%). So
 # the built-in scenes and the committed configs say nothing (tests/test_warnings.py: no line on the built-in
 # scenes) but the cornell-water scene at 8 bounces; a closed box of albedo 0.8 keeps 0.8^8 = 16.8% (h500's cube08:
 # its frame 0.877 of a path tracer's), of albedo 1 all of it

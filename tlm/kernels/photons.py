@@ -16,8 +16,8 @@ arrays."
   times reflectance); glass reflects with the Fresnel probability ``F`` (Russian
   roulette: power unchanged) or refracts (power times transmittance), total internal
   reflection included; directions about the interpolated shading normals, as for eye
-  rays. Paths stop at ``max_bounces`` surface hits; the power the photons still carried
-  then is :attr:`PhotonMaps.cut_power` (:func:`cut_power`).
+  rays. Paths stop at ``max_bounces`` surface hits; the power the global group's photons
+  still carried then is :attr:`PhotonMaps.cut_power` (:func:`cut_power`).
 * **What the maps hold.** The ray-cast frame already renders direct light (shadow
   rays), so a photon's *first* surface hit, straight from the light, is not stored (nor
   after crossing only index-matched glass, which shadow rays pass too): the caustic map
@@ -173,9 +173,10 @@ class PhotonMaps:
     indirect_map: PhotonMap
     emitted: int
     global_map: PhotonMap | None = None  # final gathering's: every diffuse hit of the global group (None: off)
-    # the power (RGB) the photons of both groups still carried when max_bounces ended their paths, each group's an
-    # estimate of the lights' power its paths carry on, and its luminance's share of the lights' power (the
-    # global group's at emission: what the caustic group emits is the part its aimed cones take of it)
+    # the power (RGB) the global group's photons still carried when max_bounces ended their paths, an estimate of
+    # the lights' power still in flight, and its luminance's share of the lights' power (the global group's at
+    # emission); not the caustic group's: aimed at the specular objects, its photons estimate a part of that light
+    # again (its specular paths), which summed with the global group's counted it twice (h511: a mirror box 132%)
     cut_power: tuple[float, float, float] = (0.0, 0.0, 0.0)
     cut_share: float = 0.0
 
@@ -485,7 +486,9 @@ def trace_photons(
 
         pairs = Deferred.like(streams) if concurrent else streams
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
-        return work, stored, full, pairs, power
+        # (the global group's alone: its paths, every one the lights send, estimate all the power in flight; the
+        # caustic group's, aimed at the specular objects, estimate a part of it again: h511, a mirror box's 132%)
+        return work, stored, full, pairs, power[~caustic_group[lo + pid]]
 
     threads.result(prepared)
     spans = photon_spans(n, max_bounces, batch_rays)
@@ -493,7 +496,7 @@ def trace_photons(
     concurrent = len(spans) > 1 and threads.current() > 1
     stored: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}  # bounce -> chunks' photons
     full: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}
-    cut: list[np.ndarray] = []  # each chunk's photons still travelling after max_bounces: their power
+    cut: list[np.ndarray] = []  # each chunk's global-group photons still travelling after max_bounces: their power
     traced = (threads.forked(trace, spans, threads.current()) if concurrent and threads.can_fork()
               else threads.ordered(trace, spans))
     with contextlib.closing(traced):  # (ended here, whatever stops the loop: forked workers and their lock too)

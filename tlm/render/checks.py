@@ -51,8 +51,8 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   stored.
 * :func:`scene_warnings` (with :func:`file_warnings`): the scene lies so far from the
   origin for its size that float64 rounds its positions to over :data:`COARSE_LIMIT` of
-  its extent; a material emits only on triangles of zero area; a closed glass part faces
-  inwards (:func:`glass_warnings`; an open one, a water surface or a pane, is not judged).
+  its extent; a material emits only on triangles of zero area; a closed glass body faces
+  inwards, not a cavity (:func:`glass_warnings`; open glass, a water surface, is not judged).
 * :func:`branching_warning`: ``render.min_weight`` 0 lets a mirror and glass walk spawn
   more than :data:`BRANCH_LIMIT` rays an eye ray (for the run to say before it renders).
 * :func:`radius_warnings`: a search radius given in scene units over the scene's diagonal.
@@ -88,6 +88,7 @@ COARSE_LIMIT = SPAWN_EPS / 10  # float64's spacing at the scene's coordinates, r
 PROBE_ULPS = 16  # ... a point light's: this many float64 ulps of the largest coordinate they start from;
 # either way never more than PROBE_EPS x the scene's diagonal (rays that start past a far scene skip it)
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+GLASS_VOLUME_LIMIT = 1e-6  # a glass body's signed volume / the sum of its tetrahedra's under minus which it faces in
 
 
 def light_name(i: int, light: Light) -> str:
@@ -454,67 +455,78 @@ def emission_warnings(scene: Scene, shown: int = 3) -> list[str]:
     return out
 
 
-def signed_volume(tri: np.ndarray) -> tuple[float, float]:
-    """``(volume, total)``: the volume triangles ``tri`` (k, 3, 3) enclose, positive where ``cross(V1 - V0,
-    V2 - V0)`` points out (their signed tetrahedra from their corners' mean, exact far from the origin), and
-    the sum of those tetrahedra's sizes."""
-    t = tri - tri.reshape(-1, 3).mean(axis=0)
-    six = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2]))
-    return float(six.sum()) / 6.0, float(np.abs(six).sum()) / 6.0
+def corner_ids(tri: np.ndarray) -> tuple[np.ndarray, int]:
+    """Triangles ``tri`` (k, 3, 3) as corner numbers (k, 3), matched by exact coordinates, and their count."""
+    x = tri.reshape(-1, 3)
+    order = np.lexsort(x.T[::-1])  # (np.unique(axis=0) is 4x slower)
+    new = np.r_[True, (x[order[1:]] != x[order[:-1]]).any(axis=1)]  # (tri: not empty)
+    corner = np.empty(order.shape[0], dtype=np.int64)
+    corner[order] = np.cumsum(new) - 1
+    return corner.reshape(-1, 3), int(new.sum())
 
 
 def closed_surface(tri: np.ndarray) -> bool:
-    """Whether triangles ``tri`` (k, 3, 3) close a surface wound one way: every edge shared by exactly
-    two triangles that run along it in opposite directions (each directed edge once, and its reverse
-    once). Corners are matched by their exact coordinates; a triangle with two equal corners (a
-    sphere's pole) is left out."""
-    x = tri.reshape(-1, 3)
-    order = np.lexsort(x.T[::-1])  # (np.unique(axis=0) is 4x slower)
-    new = np.ones(order.shape[0], dtype=bool)
-    new[1:] = (x[order[1:]] != x[order[:-1]]).any(axis=1)
-    corner = np.empty(order.shape[0], dtype=np.int64)
-    corner[order] = np.cumsum(new) - 1
-    f = corner.reshape(-1, 3)
+    """Whether triangles ``tri`` (k, 3, 3) close a surface wound one way: every edge shared by exactly two triangles
+    that run along it in opposite directions; a triangle with two equal corners (a sphere's pole) left out."""
+    f, n = corner_ids(tri)
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
-    if f.shape[0] == 0:
-        return False
-    n = int(new.sum())
     a, b = f.T.ravel(), f[:, [1, 2, 0]].T.ravel()
     edge = np.sort(a * n + b)
-    return bool((np.diff(edge) > 0).all() and np.array_equal(edge, np.sort(b * n + a)))
+    return f.shape[0] > 0 and bool((np.diff(edge) > 0).all() and np.array_equal(edge, np.sort(b * n + a)))
 
 
-GLASS_VOLUME_LIMIT = 1e-6  # signed_volume's volume / total under minus which glass faces in (a 2-sided pane: 0)
+def winding(tri: np.ndarray, p: np.ndarray) -> float:
+    """The winding number of triangles ``tri`` (k, 3, 3) about ``p``: 1 inside a closed surface facing out, -1 in."""
+    a, b, c = (tri[:, i] - p for i in range(3))
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+    den = la * lb * lc + (a * b).sum(1) * lc + (a * c).sum(1) * lb + (b * c).sum(1) * la
+    return float(np.arctan2((a * np.cross(b, c)).sum(1), den).sum() / (2.0 * np.pi))
 
 
 def glass_warnings(scene: Scene, shown: int = 3) -> list[str]:
-    """One line per part whose dielectric triangles close a surface (:func:`closed_surface`) that faces
-    inwards (:func:`signed_volume` under minus :data:`GLASS_VOLUME_LIMIT` of its total). A ray enters glass
-    from the side ``cross(V1 - V0, V2 - V0)`` points to (:func:`tlm.kernels.shade.scatter_specular`): a ball
-    wound inside out on a floor under a point light, pmap at 48x48, 20,000 photons, gives a refract frame
-    0.02x to 20x per pixel of the right one's, the caustic's peak 3.46 -> 0.075. Open glass (a water surface,
-    a pane, a body split over parts or wound both ways) encloses no volume to judge and is not named; nor is
-    a hollow body (its cavity, facing into it, subtracts from a positive volume)."""
+    """One line per set of parts whose dielectric triangles, joined by their corners into bodies (over parts too,
+    h511), close a surface (:func:`closed_surface`) enclosing a negative volume (under minus :data:`GLASS_VOLUME_LIMIT`
+    of its tetrahedra's sizes) in no other closed glass body (a cavity, :func:`winding`): glass is entered from the
+    side cross(V1 - V0, V2 - V0) points to (h506: a ball so wound rendered its refract frame 0.02x-20x off)."""
     on = np.flatnonzero(np.array([m.kind == "dielectric" for m in scene.materials], dtype=bool)[scene.material_index])
     if on.shape[0] == 0:
         return []
-    on = on[np.argsort(scene.part[on], kind="stable")]
-    parts, first = np.unique(scene.part[on], return_index=True)
+    tri = scene.triangles[on]
+    f, n = corner_ids(tri)
+    label, u, v = np.arange(n), f.ravel(), f[:, [1, 2, 0]].ravel()  # (the bodies: each corner's least, union-find)
+    while (label[u] != label[v]).any():
+        np.minimum.at(label, label[u], label[v])
+        np.minimum.at(label, label[v], label[u])
+        while (label != label[label]).any():
+            label = label[label]
+    body = np.unique(label[f[:, 0]], return_inverse=True)[1]  # (0 .. k - 1, every one a body's: bincount's k)
+    mean = np.stack([np.bincount(body, tri[:, :, c].sum(axis=1)) for c in range(3)], axis=1)
+    t = tri - (mean / (3 * np.bincount(body)[:, None]))[body][:, None, :]  # (exact far from the origin)
+    six = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2]))
+    volume, total, each = np.bincount(body, six), np.bincount(body, np.abs(six)), np.split(
+        np.argsort(body, kind="stable"), np.cumsum(np.bincount(body))[:-1])  # (each body's triangles)
+    neg = [b for b in np.flatnonzero(volume < -GLASS_VOLUME_LIMIT * total) if closed_surface(tri[each[b]])]
+    closed = {*neg, *(b for b in np.flatnonzero(volume > GLASS_VOLUME_LIMIT * total) if neg and closed_surface(
+        tri[each[b]]))}  # (the bodies facing out: judged only where one faces in, whether it lies in one of them)
+    said: dict[tuple, list] = {}  # (the bodies of each set of parts: one line)
+    for b in neg:
+        if closed - {b} and winding(tri[np.isin(body, list(closed - {b}))], tri[each[b][0]].mean(axis=0)) > 0.5:
+            continue  # (a cavity of a glass body: its faces rightly point into it)
+        said.setdefault(tuple(np.unique(scene.part[on[each[b]]])), []).append(b)
     out = []
-    for p, ids in zip(parts, np.split(on, first[1:])):
-        tri = scene.triangles[ids]
-        volume, total = signed_volume(tri)
-        if not volume < -GLASS_VOLUME_LIMIT * total or not closed_surface(tri):
-            continue  # (the volume first: a part that faces out costs no closedness test)
-        mats = [scene.materials[i].name for i in np.unique(scene.material_index[ids])]
-        out.append(f"part {quoted(scene.part_names[p])} (glass: material{'s' if len(mats) > 1 else ''} "
-                   f"{listing(map(quoted, mats), shown)}) is a closed surface that faces inwards: its "
-                   f"{ids.shape[0]} triangles enclose a volume of {volume:.3g}, negative (cross(V1 - V0, V2 - V0) "
-                   "points into it), so light refracts out of it where it should enter and the refract and "
-                   "photon-map frames are wrong (reverse the order of its faces' corners in its mesh file, an "
-                   "OBJ's 'f 1 2 3' as 'f 1 3 2': glass is a closed surface with its front outward, "
-                   "docs/scenes.md; the scene file has no key that turns a part's faces, and a mirroring "
-                   "transform keeps them outward or inward as they are)")
+    for parts, bodies in said.items():
+        ids = np.concatenate([each[b] for b in bodies])
+        mats, many, its = np.unique(scene.material_index[on[ids]]), len(parts) > 1, "their" if len(parts) > 1 else "its"
+        out.append(f"part{'s' * many} {listing((quoted(scene.part_names[p]) for p in parts), shown)} (glass: material"
+                   f"{'s' * (len(mats) > 1)} {listing((quoted(scene.materials[i].name) for i in mats), shown)}) "
+                   f"{'are' if many else 'is'} a closed surface that faces inwards: "
+                   + (f"{its} {ids.shape[0]}" if ids.shape[0] == np.isin(scene.part[on], parts).sum() else
+                      f"{ids.shape[0]} of {its}") + f" triangles enclose a volume of {volume[bodies].sum() / 6.0:.3g}, "
+                   "negative (cross(V1 - V0, V2 - V0) points into it), so light refracts out of it where it should "
+                   "enter and the refract and photon-map frames are wrong (reverse the order of its faces' corners in "
+                   "its mesh file, an OBJ's 'f 1 2 3' as 'f 1 3 2': glass is a closed surface with its front outward, "
+                   "docs/scenes.md; the scene file has no key that turns a part's faces, and a mirroring transform "
+                   "keeps them outward or inward as they are)")
     return out
 
 
