@@ -96,7 +96,9 @@ def test_a_compile_inside_a_timed_gather_is_taken_out_of_it(tmp_path, cache, mon
     rows = _study(tmp_path, resolution=16)
     (c,) = compiled
     assert max(r["gather_seconds"] for r in rows) < c / 2  # (before: row 0's >= c)
-    assert rows[0]["one_off_seconds"] >= 0.9 * c
+    # (the compiler's spans: most of c, not all of it: the calls' typing and the loop outside them, a larger part
+    # on a loaded machine: 0.93 s of 1.04 in a CI run beside other jobs; charged to no row, it would be about 0)
+    assert rows[0]["one_off_seconds"] >= 0.5 * c
 
 
 def test_a_shared_maps_leaf_order_is_counted_by_every_row_that_uses_it(tmp_path, cache, monkeypatch):
