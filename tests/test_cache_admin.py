@@ -293,7 +293,7 @@ def test_the_python_api_surveys_prunes_and_clears_as_tlm_cache_does(cache):
     (lambda tlm: tlm.prune_cache(older_than=1, caches="nope"), "caches: 'nope' is not one of tlm's caches"),
     (lambda tlm: tlm.clear_cache(caches=5), "caches: 5 is not one of tlm's caches"),
     (lambda tlm: tlm.clear_cache(dry_run="yes"), "dry_run: 'yes' is not True or False"),
-    (lambda tlm: tlm.prune_cache(), "prune_cache: give older_than= and/or max_size="),
+    (lambda tlm: tlm.prune_cache(), "prune_cache: give older_than=, max_size= and/or stale=True"),
 ])
 def test_the_python_api_s_bad_arguments_are_input_errors_in_python_words(call, said, cache):
     import tlm

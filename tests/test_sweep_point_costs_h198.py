@@ -218,7 +218,7 @@ def test_the_points_of_a_frame_read_it_once_while_its_entry_is_that_file(loads, 
     assert other != a.functional
     other.save(npz)
     side = npz.with_suffix(".json")
-    side.write_text(json.dumps({**json.loads(side.read_text()), "npz": file_digest(npz)}))
+    side.write_text(json.dumps(frames.sealed({**json.loads(side.read_text()), "npz": file_digest(npz)})))  # (h514)
     c = cached_render(cfg)
     assert c.cached and len(loads) == 2 and c.functional == other
     # its bytes changed under an unchanged sidecar: damaged, said, rendered again; never the frame kept

@@ -32,19 +32,23 @@ def cache_info(caches: str | Iterable[str] | None = None) -> dict:
 
 
 def prune_cache(older_than: float | str | None = None, max_size: float | str | None = None,
-                caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
+                caches: str | Iterable[str] | None = None, dry_run: bool = False, stale: bool = False) -> dict:
     """``tlm cache prune``: the entries of ``caches`` (:func:`cache_info`'s) last used over ``older_than`` ago
     (seconds, ``"30d"``), then the least recently used until the rest take ``max_size`` (bytes, ``"500M"``),
     removed whole. Returns ``dry_run`` (True: ``removed`` lists what would be removed; nothing is),
     ``removed`` and ``not_removed`` (with ``why``: ``used meanwhile``, read, written or replaced since the
     survey, so kept), each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``
     (every entry not removed: those that could not be too). ``older_than`` at most 1000 years, ``max_size``
-    1 EiB; ``caches=[]``: none, nothing removed. A Ctrl-C while entries are removed raises
-    :class:`tlm.cache_admin.RemovalInterrupted` (a KeyboardInterrupt) whose ``removed`` lists those
-    already removed (each whole)."""
-    if older_than is None and max_size is None:
-        raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
-    return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))
+    1 EiB; ``caches=[]``: none, nothing removed. ``stale=True`` (``tlm cache prune --stale``): the stale frames
+    too, written by other code than this (their sidecar's ``code_fingerprint``), alone or with the others. A
+    Ctrl-C while entries are removed raises :class:`tlm.cache_admin.RemovalInterrupted` (a KeyboardInterrupt)
+    whose ``removed`` lists those already removed (each whole)."""
+    stale = _checked(stale, "stale", bool)
+    if older_than is None and max_size is None and not stale:
+        raise InputError("give older_than=, max_size= and/or stale=True (clear_cache() removes every entry)",
+                         key="prune_cache")
+    return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"),
+                    stale=stale)
 
 
 def clear_cache(caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
@@ -76,8 +80,9 @@ def _amount(value: Any, key: str) -> float | None:
     raise InputError(f"{_shown(value)} is not {what}", key=key)
 
 
-def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None, clear: bool = False) -> dict:
+def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None, clear: bool = False,
+             stale: bool = False) -> dict:
     """:func:`prune_cache` (:func:`clear_cache`: ``clear``, every entry) as ``tlm cache`` does it."""
     dry_run = _checked(dry_run, "dry_run", bool)
     return _ca.prune(_cache_names(caches), older, None if most is None else int(most), clear=clear,
-                     dry_run=dry_run).record()
+                     dry_run=dry_run, stale=stale).record()

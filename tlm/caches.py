@@ -2,9 +2,11 @@
 
 * :func:`cache_home` — the folder of every cache (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
   else ``~/.cache/tlm``); :func:`cache_root` — one cache's folder in it (``functional``,
-  ``scenes``, ``references``, ``oracle``: :data:`CACHES`).
+  ``scenes``, ``references``, ``oracle``: :data:`CACHES`); :func:`cache_needed` — the same, for a use
+  that needs it (the scene cache's line waits for a mesh file's load: :data:`WAIT_FOR_USE`).
 * :func:`cache_failed` — the one line, said once a process per problem, that a cache cannot be written,
-  why, and what that costs (speed only, never a result); :func:`cache_warnings` — the lines on the caches
+  why, and what that costs (speed only, never a result; what it holds is still read where its folder can
+  be, a shared cache mounted read-only: the line says so); :func:`cache_warnings` — the lines on the caches
   as they are now, which a run records (a folder fixed since is said no more); :func:`cache_warnings_held` —
   a sweep's point keeps them for its sweep to say. A write that fails under a cache's folder (a full disk, the
   folder replaced by a file since it was first looked at) says its line too (:func:`tlm.storage.on_failed_write`,
@@ -69,18 +71,26 @@ def own_cache() -> str | None:
 own_cache()  # (its first read: a relative one from the working folder as tlm's caches are first imported)
 
 
-# tlm's caches that a run writes to: their names in a warning, and what a cache that
-# cannot be written costs (the tracebacks' folder, which falls back to the temporary
-# folder, and numba's, which says its own line, are not among them)
+# tlm's caches that a run writes to: their names in a warning, and what a cache that cannot be written
+# costs where its folder can be read (what it holds is still read: a shared cache mounted read-only, a full
+# disk), and where it cannot (none there, a path under a file) (the tracebacks' folder, which falls back to
+# the temporary folder, and numba's, which says its own line, are not among them)
+_FRAMES = ("the frames it holds are read, but none is added: a frame not in it is rendered again by every run and "
+           "sweep point, even points that differ only in arch.*")  # (a sweep of cached frames renders none)
 CACHES = {
-    # (what it holds is still read: a sweep of cached frames renders none)
-    "functional": ("functional", "the frames it holds are read, but none is added: a frame not in it is rendered "
-                   "again by every run and sweep point, even points that differ only in arch.*"),
-    "scenes": ("scene", "large meshes are parsed again on every load, and no scene's fingerprint is remembered: "
+    "functional": ("functional", _FRAMES, _FRAMES),
+    "scenes": ("scene", "the parsed meshes and scene fingerprints it holds are read, but none is added: a large "
+               "mesh not in it is parsed again on every load, by each process (a finished sweep's rerun too)",
+               "large meshes are parsed again on every load, and no scene's fingerprint is remembered: "
                "each process (a finished sweep's rerun too) parses its mesh scenes again"),
-    "references": ("reference", "photon-map references are computed again by every run"),
-    "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
+    "references": ("reference", "the references it holds are read, but none is added: a photon-map reference not "
+                   "in it is computed again by every run", "photon-map references are computed again by every run"),
+    "oracle": ("Mitsuba ground-truth", "the ground truths it holds are read, but none is added: a ground truth not "
+               "in it is rendered again by every run", "ground truths are rendered again by every run"),
 }
+# the caches a use needs before their line is said (cache_needed): the scene cache's remembered fingerprints are
+# looked up for every scene, but only a mesh file's load costs what its line says (a scene of no mesh file none)
+WAIT_FOR_USE = frozenset({"scenes"})
 CACHE_WARNING = "cannot write tlm's "  # how each line of cache_warnings() starts
 _CACHE_LOCK = threading.Lock()
 _CACHE_CHECKED: set[Path] = set()  # the cache folders looked at in this process
@@ -88,6 +98,8 @@ _CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> i
 _CACHE_WRITES: set[Path] = set()  # those of _CACHE_LINES a failed write told, which looking cannot (a full disk)
 _CACHE_SAID: set[str] = set()  # the lines said on stderr in this process
 _CACHE_HELD = 0  # > 0: the lines are kept, not said (a sweep point: its sweep says them once)
+_CACHE_NEEDED: set[Path] = set()  # the folders of WAIT_FOR_USE a use needed in this process (cache_needed)
+_CACHE_WAITING: set[Path] = set()  # those of WAIT_FOR_USE the first look found unwritable, not needed yet
 
 
 def cache_root(kind: str) -> Path:
@@ -96,6 +108,7 @@ def cache_root(kind: str) -> Path:
     The first call in a process for a cache of :data:`CACHES` checks that the folder can be
     written (or made); where it cannot, one line says so (:func:`cache_failed`): a cache
     that cannot be written costs speed only, never a result, but the user is told which.
+    A cache of :data:`WAIT_FOR_USE` (the scene cache) says it once a use needs it (:func:`cache_needed`).
     """
     folder = cache_home() / kind
     if kind in CACHES and folder not in _CACHE_CHECKED:
@@ -103,7 +116,28 @@ def cache_root(kind: str) -> Path:
             _CACHE_CHECKED.add(folder)
         why = cache_problem(folder)
         if why is not None:
-            cache_failed(folder, why)
+            with _CACHE_LOCK:
+                wait = kind in WAIT_FOR_USE and folder not in _CACHE_NEEDED
+                if wait:
+                    _CACHE_WAITING.add(folder)
+            if not wait:
+                cache_failed(folder, why)
+    return folder
+
+
+def cache_needed(kind: str) -> Path:
+    """:func:`cache_root` for a use that needs the cache (the scene cache: a mesh file's load,
+    :func:`tlm.scenes.cache.cache_dir`): a line its first look found and kept (:data:`WAIT_FOR_USE`: a
+    scene of no mesh file loses nothing by it) is said now, where the folder still cannot be written."""
+    folder = cache_root(kind)
+    with _CACHE_LOCK:
+        if folder in _CACHE_NEEDED:
+            return folder
+        _CACHE_NEEDED.add(folder)
+        waited = folder in _CACHE_WAITING
+        _CACHE_WAITING.discard(folder)
+    if waited and (why := cache_problem(folder)) is not None:
+        cache_failed(folder, why)
     return folder
 
 
@@ -161,8 +195,10 @@ def cache_failed(path: Path, why: str) -> None:
 
 
 def _cache_line(folder: Path, why: str) -> str:
-    """The line on the cache ``folder`` (``<cache_home()>/<kind>``) that cannot be written, and why."""
-    name, cost = CACHES[folder.name]
+    """The line on the cache ``folder`` (``<cache_home()>/<kind>``) that cannot be written, and why: what it
+    costs where the folder can still be read (what it holds is read) or where it cannot (:data:`CACHES`)."""
+    name, read, unread = CACHES[folder.name]
+    cost = read if os.path.isdir(folder) and os.access(folder, os.R_OK | os.X_OK) else unread
     return f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
 
 
@@ -427,9 +463,12 @@ def digest_problem(path: Path, digest: object) -> str | None:
     if not isinstance(digest, dict) or not isinstance(digest.get("size"), int):
         return "its sidecar has no size and checksum"
     try:
-        size = Path(path).stat().st_size
+        st = Path(path).stat()
     except OSError as e:
         return f"cannot read it ({e.strerror or e})"
+    if stat.S_ISDIR(st.st_mode):  # (not its size: a folder's own bytes)
+        return "a folder, not a file"
+    size = st.st_size
     if size != digest["size"]:
         return f"{size} bytes, its sidecar says {digest['size']}"
     if file_digest(path)["sha256"] != digest.get("sha256"):

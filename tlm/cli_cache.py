@@ -1,5 +1,5 @@
-"""``tlm cache [info | prune | clear]``: what tlm's caches hold, and their entries removed whole
-(:mod:`tlm.cache_admin`); :func:`add_cache_parser` is :func:`tlm.cli.build_parser`'s."""
+"""``tlm cache [info | list | prune | clear]``: what tlm's caches hold (each entry, ``list``), and their entries
+removed whole (:mod:`tlm.cache_admin`); :func:`add_cache_parser` is :func:`tlm.cli.build_parser`'s."""
 
 from __future__ import annotations
 
@@ -17,6 +17,10 @@ _LAST_USE = ("Last use: the latest access or modification time of an entry's fil
              "it; numba's read of a kernel only where the file system keeps access times)")
 
 
+_STALE = ("a frame is stale where other code than this tlm's wrote it (its sidecar's code_fingerprint is not this "
+          "code's, or it has none): its key, which hashes the code, is one this code never reads (another checkout "
+          "or version of tlm sharing the cache may)")
+_SORTS = ("what", "use", "size")
 _PARTIALS_SHOWN = 10  # (tlm cache: a line each for the first partials, references/<key>.partial.npz)
 
 
@@ -45,7 +49,8 @@ def _cache_option(p: argparse.ArgumentParser, default=None, dest: str = "cache")
 
 def _json_option(p: argparse.ArgumentParser, default=False) -> None:
     p.add_argument("--json", action="store_true", default=default,
-                   help="as JSON (info: the table; prune, clear: what tlm.prune_cache returns)")
+                   help="as JSON (info: the table; list: a row per entry; prune, clear: what tlm.prune_cache "
+                   "returns)")
 
 
 def _one_name(text: str, key: str = "--cache") -> str:
@@ -61,15 +66,30 @@ def add_cache_parser(sub) -> None:
                        "itself counts nothing).")
     _json_option(c)
     _cache_option(c)
-    cs = c.add_subparsers(dest="cache_cmd", metavar="{info,prune,clear}")
-    i = cs.add_parser("info", help="one row per cache: its entries, size, oldest and newest last use, folder "
-                      "(what tlm cache alone prints)")
+    cs = c.add_subparsers(dest="cache_cmd", metavar="{info,list,prune,clear}")
+    i = cs.add_parser("info", help="one row per cache: its entries, size, oldest and newest last use, folder, and "
+                      "how many frames are stale (what tlm cache alone prints)")
     _json_option(i, argparse.SUPPRESS)
     _cache_option(i, argparse.SUPPRESS, "cache_too")
-    p = cs.add_parser("prune", help="remove whole entries: those last used before --older-than, then the least "
-                      "recently used until the rest fit --max-size", description=_LAST_USE + ". Never removed: "
+    ls = cs.add_parser("list", help="one row per entry: what it is (a frame's scene, resolution and mode; a "
+                       "reference's resolution, photons and rounds), size, last use, stale or not",
+                       description="One row per entry: what it is (kind; a frame's scene, resolution and mode, from "
+                       "its sidecar; a reference's or ground truth's resolution, photons and rounds or spp, from its "
+                       "meta.json and image), its size, last use, and whether it is stale: " + _STALE + ". " + _LAST_USE
+                       + ". Listing is no use: no last use changes.")
+    ls.add_argument("--sort", choices=_SORTS, default="what", help="what: by cache, then what the entry is, newest "
+                    "use first (default); use: least recently used first (as a prune takes them); size: largest "
+                    "first")
+    ls.add_argument("--stale", action="store_true", help="only the stale frames")
+    _json_option(ls, argparse.SUPPRESS)
+    _cache_option(ls, argparse.SUPPRESS, "cache_too")
+    p = cs.add_parser("prune", help="remove whole entries: the stale frames (--stale), those last used before "
+                      "--older-than, then the least recently used until the rest fit --max-size",
+                      description=_LAST_USE + ". " + _STALE[0].upper() + _STALE[1:] + ". Never removed: "
                       "files that are not tlm's entries, and writes in progress (a temporary file under an hour "
                       "old, or one a live process is writing). A run that needs a removed entry computes it again.")
+    p.add_argument("--stale", action="store_true", help="remove the stale frames: those written by other code "
+                   "than this tlm's (tlm cache list --stale lists them)")
     p.add_argument("--older-than", type=_typed(ca.duration), metavar="DURATION",
                    help="remove entries last used more than this long ago: a number and s, m, h, d or w, any "
                    "case (30d, 12h, 90m: minutes, 2w; at most 1000 years)")
@@ -79,7 +99,8 @@ def add_cache_parser(sub) -> None:
                    "powers of 1024, any case, B or iB after it or not (500M, 2G, 2gb, 1.5GiB; at most 1 EiB)")
     _cache_option(p, argparse.SUPPRESS, "cache_too")
     _json_option(p, argparse.SUPPRESS)
-    p.add_argument("--dry-run", action="store_true", help="list what would go, with sizes; remove nothing")
+    p.add_argument("--dry-run", action="store_true", help="list what would go, what each is, with sizes; remove "
+                   "nothing")
     cl = cs.add_parser("clear", help="remove every entry of the caches (--cache: of those only)")
     _cache_option(cl, argparse.SUPPRESS, "cache_too")
     _json_option(cl, argparse.SUPPRESS)
@@ -95,13 +116,16 @@ def cache_command(args: argparse.Namespace) -> int:
     as_json = getattr(args, "json", False)
     if command == "info":
         return _info(names, as_json)
-    if command == "prune" and args.older_than is None and args.max_size is None:
-        raise InputError("give --older-than DURATION and/or --max-size SIZE (tlm cache clear removes every entry)",
-                         source="tlm cache prune")
+    if command == "list":
+        return _list(names, as_json, args.sort, args.stale)
+    stale = getattr(args, "stale", False)
+    if command == "prune" and args.older_than is None and args.max_size is None and not stale:
+        raise InputError("give --older-than DURATION and/or --max-size SIZE, or --stale (tlm cache clear removes "
+                         "every entry)", source="tlm cache prune")
     clear = command == "clear"
     try:
         outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
-                           dry_run=args.dry_run)
+                           dry_run=args.dry_run, stale=stale)
     except KeyboardInterrupt as e:  # (Ctrl-C, SIGTERM: still 130 / 143, its line saying what went by then: the
         # rest of it, as tlm.cli_signals.Interrupted's ``kept``, which tlm.cli_failed.exit_status reads)
         if not args.dry_run and getattr(e, "kept", None) is None:
@@ -120,7 +144,7 @@ def cache_command(args: argparse.Namespace) -> int:
     if args.dry_run:
         chosen = outcome.chosen
         for e in chosen:
-            _out(f"would remove {e.shown()} ({ca.human(e.size)}, last used {_when(e.last_use)}"
+            _out(f"would remove {e.shown()} ({_described(e)}; {ca.human(e.size)}, last used {_when(e.last_use)}"
                  + (f"; partial: {e.partial})" if e.partial else ")"))
         _out(f"would remove {_count(chosen)} ({ca.human(sum(e.size for e in chosen))}), keep {len(kept)} "
              f"({ca.human(kept_size)}){skipped}; nothing removed (--dry-run)")
@@ -151,6 +175,11 @@ def _partials(entries: list) -> str:
     return f" ({len(partials)} partial{'' if len(partials) == 1 else 's'}: {', '.join(words)})"
 
 
+def _described(e) -> str:
+    """What the entry ``e`` is, in words, ``, stale`` after a stale frame's: ``frame cornell 320x240 pmap, stale``."""
+    return e.what() + (", stale" if e.stale else "")
+
+
 def _count(entries: list) -> str:
     return f"{len(entries)} entr{'y' if len(entries) == 1 else 'ies'}"
 
@@ -160,15 +189,15 @@ def _where(entries: list) -> str:
     return ", ".join(names) if names else "no cache"
 
 
-def _skipped(caches: list) -> str:
-    """What a prune or clear never touches, where there is any."""
+def _skipped(caches: list, said: str = "left alone") -> str:
+    """What a prune or clear never touches (``said``: what to call it), where there is any."""
     busy, other = sum(len(c.busy) for c in caches), sum(len(c.other) for c in caches)
     words = []
     if busy:
         words.append(f"{busy} being written")
     if other:
         words.append(f"{other} not tlm's")
-    return f"; left alone: {', '.join(words)}" if words else ""
+    return f"; {said}: {', '.join(words)}" if words else ""
 
 
 def _when(t: float | None) -> str:
@@ -181,7 +210,7 @@ def _info(names: list[str], as_json: bool) -> int:
     if as_json:
         _out(ca.as_json(caches, home))
         return 0
-    _out(f"tlm's caches in {home}")
+    _out(f"tlm's caches in {home}" + (f" ({problem})" if (problem := ca.dangling(home)) else ""))
     rows = [("cache", "entries", "size", "oldest use", "newest use", "folder")]
     for c in caches:
         uses = [e.last_use for e in c.entries]
@@ -199,15 +228,56 @@ def _info(names: list[str], as_json: bool) -> int:
         _out(f"{e.shown()}: partial: {e.partial} ({ca.human(e.size)}, last used {_when(e.last_use)})")
     if len(partials) > _PARTIALS_SHOWN:
         _out(f"and {len(partials) - _PARTIALS_SHOWN} partials more (tlm cache --json lists them)")
+    for c in caches:
+        if c.problem:
+            _out(f"{c.name}: {c.problem}: no entries are read there, nor written")
+        if c.name == "functional" and c.entries:
+            stale = [e for e in c.entries if e.stale]
+            _out(f"functional: {len(stale)} of {_count(c.entries)} stale ({ca.human(sum(e.size for e in stale))} of "
+                 f"{ca.human(c.size)}): frames of other code than this tlm's, which it never reads"
+                 + ("; tlm cache list --stale lists them, tlm cache prune --stale removes them" if stale else ""))
     busy = [c for c in caches if c.busy]
     other = [p for c in caches for p in c.other]
     line = f"the folder in all: {ca.human(ca.folder_size(home))}"
     if busy:
-        line += (f"; being written: {sum(len(c.busy) for c in busy)} files "
+        n = sum(len(c.busy) for c in busy)
+        line += (f"; being written: {n} file{'' if n == 1 else 's'} "
                  f"({ca.human(sum(c.busy_size for c in busy))})")
     if other:
         line += (f"; not tlm's entries, never removed: {len(other)} "
                  f"({ca.human(sum(c.other_size for c in caches))}), e.g. {other[0]}")
     _out(line)
     _out(_LAST_USE)
+    return 0
+
+
+def _list(names: list[str], as_json: bool, sort: str, stale: bool) -> int:
+    """``tlm cache list``: a row per entry of the caches ``names`` (``stale``: the stale frames alone), sorted."""
+    home = cache_home()
+    caches = ca.survey(names, home, whole=True)
+    entries = [e for c in caches for e in c.entries if e.stale or not stale]
+    entries.sort(key=lambda e: -e.last_use)  # (then stably: newest use first within what is alike)
+    if sort == "what":
+        entries.sort(key=lambda e: (ca.NAMES.index(e.cache), e.kind, str(e.about.get("scene", "")),
+                                    e.about.get("resolution", [0, 0]), str(e.about.get("mode", ""))))
+    else:
+        entries.sort(key=lambda e: e.last_use if sort == "use" else -e.size)
+    if as_json:
+        _out(json.dumps({"folder": str(home), "code_fingerprint": ca.code_fingerprint(), "sort": sort,
+                         "problems": [p for p in [ca.dangling(home), *(c.problem for c in caches)] if p],
+                         "entries": [e.row() for e in entries]}, indent=1))
+        return 0
+    _out(f"tlm's cache entries in {home} (this tlm's code: {ca.code_fingerprint()})")
+    rows = [("entry", "what", "size", "last use", "stale")] + [
+        (e.shown(), e.what(), ca.human(e.size), _when(e.last_use), "stale" if e.stale else "") for e in entries]
+    widths = [max(len(r[k]) for r in rows) for k in range(5)]
+    for r in rows:
+        _out("  ".join(v.rjust(w) if k == 2 else v.ljust(w) for k, (v, w) in enumerate(zip(r, widths))).rstrip())
+    old = [e for e in entries if e.stale]
+    _out(f"{_count(entries)} ({ca.human(sum(e.size for e in entries))}), {len(old)} stale "
+         f"({ca.human(sum(e.size for e in old))}){_skipped(caches, 'not entries')}")
+    for p in [ca.dangling(home), *(c.problem for c in caches)]:
+        if p:
+            _out(p)
+    _out(_STALE[0].upper() + _STALE[1:] + "; tlm cache prune --stale removes them")
     return 0

@@ -3,8 +3,10 @@ a process and remembers its fingerprint (:func:`~tlm.experiments.frame_scenes.sc
 load read are unchanged (:func:`~tlm.experiments.frame_scenes.unchanged`), so the points of a sweep that differ only in
 ``arch`` do not load it again each; a scene with mesh files on disk too (``scenes/key-<hash>.json`` in tlm's cache:
 :func:`_kept_key`, :func:`keep_key`), so that another process (a rerun of a sweep whose points are done) parses no
-mesh for it. Out of :mod:`tlm.experiments.frames` (h487), which re-exports :func:`scene_key` and :data:`MEMO_SIZE`
-(and :func:`scene_key_loaded` and :func:`keep_key` by their old names there, ``_scene_key`` and ``_keep_key``).
+mesh for it; a dry run's read of it is a look, not a use (:func:`looked`: the file's times as they were, which
+``tlm cache prune`` reads). Out of :mod:`tlm.experiments.frames` (h487), which re-exports :func:`scene_key` and
+:data:`MEMO_SIZE` (and :func:`scene_key_loaded` and :func:`keep_key` by their old names there, ``_scene_key`` and
+``_keep_key``).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import os
 import re
 import threading
 from collections import OrderedDict
+from contextlib import suppress
 from pathlib import Path
 
 from tlm.caches import cache_root, cache_write_failed, cache_written, note_use, remove_entry
@@ -173,8 +176,8 @@ def _kept_key(key: tuple) -> tuple[str, list, str | None, list | None] | None:
     if found is None:
         return None
     path, plain = found
-    try:
-        kept = json.loads(path.read_text(encoding="utf-8"))
+    try:  # (a dry run's read is a look, not a use: the file's times as they were)
+        kept = json.loads(path.read_text(encoding="utf-8") if writable() else looked(path).decode("utf-8"))
         if (not isinstance(kept, dict) or kept.get("tlm") != SCENE_KEY_FORMAT or kept.get("key") != plain
                 or not isinstance(kept.get("fingerprint"), str) or not isinstance(kept.get("checks"), list)
                 or not all(isinstance(c, list) and c and c[0] in TELLS for c in kept["checks"])):
@@ -216,3 +219,34 @@ def keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = No
         cache_write_failed(path, e)
     else:
         cache_written(path)
+
+
+def looked(path: Path, digest: bool = False) -> bytes | dict:
+    """The bytes of ``path`` (with ``digest``: their size and sha256, as :func:`~tlm.caches.file_digest` gives them,
+    read a MiB at a time), read without changing its access time: opened ``O_NOATIME`` where this process may (the
+    file's owner), else its access time set back after the read where it changed (its modification time as it is
+    then: a use another process marks meanwhile is kept). OSError where it cannot be read. A look at a cache entry
+    that is not a use of it (``tlm sweep --dry-run``: :func:`tlm.experiments.frames.is_cached`, :func:`_kept_key`),
+    which ``tlm cache prune`` would otherwise take for one (the later of a file's access and modification times)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)  # (a FIFO put there: no wait)
+    try:
+        fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
+    except PermissionError:  # (O_NOATIME: the owner's alone)
+        fd = os.open(path, flags)
+    try:
+        before = os.fstat(fd)
+        h, size, chunks = hashlib.sha256(), 0, []
+        with open(fd, "rb", closefd=False) as fh:
+            while chunk := fh.read(1 << 20):
+                if digest:
+                    h.update(chunk)
+                    size += len(chunk)
+                else:
+                    chunks.append(chunk)
+        after = os.fstat(fd)
+        if after.st_atime_ns != before.st_atime_ns and os.utime in os.supports_fd:
+            with suppress(OSError):  # (not the owner's: its access time is the system's)
+                os.utime(fd, ns=(before.st_atime_ns, after.st_mtime_ns))
+    finally:
+        os.close(fd)
+    return {"size": size, "sha256": h.hexdigest()} if digest else b"".join(chunks)

@@ -7,18 +7,23 @@ scene's content and the code (:func:`tlm.fingerprint.code_fingerprint`, the whol
 Re-simulating a frame under another architecture config then reruns only the SimPy layer.
 Beside each ``.npz`` a JSON sidecar of the same key keeps what a result row needs and the
 timing model does not (work totals, scene statistics), so a sweep point never has to render to
-report them, with the size and sha256 of the ``.npz`` (``npz``). A photon-map frame keeps its
+report them, with the size and sha256 of the ``.npz`` (``npz``), the code that wrote it (``code_fingerprint``:
+:func:`~tlm.fingerprint.code_fingerprint`, which its key holds too, so ``tlm cache`` tells an entry of other code, never
+read again, from a live one) and, last, a digest of the rest of it (``sidecar_sha256``: :func:`sealed`), checked as it
+is read, so a value changed in it is a damaged entry. A photon-map frame keeps its
 image too (``<key>.pmap.npy``, its size and sha256 in the sidecar's ``pmap``), so its error is
 measured when the frame is read, against the reference cached then (:func:`cached_render`): a
 reference computed after the frame was cached (``tlm reference``) is used, as ``tlm run`` would. The image
 is read only where there is a reference, its bytes checked against the sidecar as they are read: one removed
 meanwhile (another process) or changed renders the frame again, a changed one said as a damaged entry.
 A damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
-key a result row reads or with one of another type (:func:`summary_problem`), a folder where either
+key a result row reads or with one of another type (:func:`summary_problem`), one not as its digest says
+(:func:`seal_problem`) or naming other code than its key's, a folder where either
 file should be) is reported once as a warning naming the file, removed (a folder too, only inside
 the cache) and rendered again; an entry whose file is removed under its reader (``tlm cache prune``,
 another process) is a miss, rendered again quietly. A frame read marks its entry used, for ``tlm cache
-prune``. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
+prune``; a look (:func:`is_cached`: ``tlm sweep --dry-run``) is not a use, and leaves the files' times as they were.
+A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
 
 A key needs the scene's content: :func:`~tlm.experiments.frame_keys.scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
@@ -55,6 +60,7 @@ from tlm.config import config_from_dict, to_dict
 from tlm.experiments import run
 from tlm.experiments.frame_keys import MEMO_SIZE as MEMO_SIZE  # (the scene's part of a key: out of here, h487)
 from tlm.experiments.frame_keys import keep_key as _keep_key  # noqa: F401  (kept importable from here, by its old name)
+from tlm.experiments.frame_keys import looked as _looked
 from tlm.experiments.frame_keys import scene_key as scene_key
 from tlm.experiments.frame_keys import scene_key_loaded as _scene_key
 from tlm.experiments.frame_scenes import moved_line
@@ -93,10 +99,12 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/6"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
+SUMMARY_FORMAT = "functional-summary/7"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
 # /4: a reference not converged is a warning, and an unread override is warned of once; /5: the photon-map
 # frame's image kept (``pmap``), its error measured when read, the reference's lines not kept; /6: the line on
-# render.threads past the CPUs not kept (the process's and machine's that runs a point, not the frame's)
+# render.threads past the CPUs not kept (the process's and machine's that runs a point, not the frame's); /7: the
+# sidecar's own digest (``sidecar_sha256``: :func:`sealed`) and the code that wrote it (``code_fingerprint``)
+SEAL = "sidecar_sha256"  # a sidecar's digest of the rest of it (:func:`sealed`, :func:`seal_problem`)
 
 
 # what a sidecar of SUMMARY_FORMAT holds, by type (summary_problem): the keys a result row reads
@@ -130,6 +138,31 @@ def summary_problem(summary: dict) -> str | None:
     return why
 
 
+def sealed(side: dict) -> dict:
+    """``side`` (a sidecar's content) with its digest, :data:`SEAL`: the sha256 of the canonical JSON of the rest of it
+    (its keys sorted, no spaces: :func:`_canonical`), so that a value changed in the file (a byte of a count) is
+    told from what was written, as the ``.npz``'s own sha256 tells its bytes."""
+    rest = {k: v for k, v in side.items() if k != SEAL}
+    return {**rest, SEAL: hashlib.sha256(_canonical(rest)).hexdigest()}
+
+
+def seal_problem(side: dict) -> str | None:
+    """Why the sidecar ``side`` (of :data:`SUMMARY_FORMAT`, as read) is not what :func:`sealed` wrote (its digest
+    missing, or not that of the rest of it), or None."""
+    held = side.get(SEAL)
+    if not isinstance(held, str):
+        return f"it has no {SEAL!r}"
+    if sealed(side)[SEAL] != held:
+        return f"its content differs from its {SEAL!r}"
+    return None
+
+
+def _canonical(value) -> bytes:
+    """``value``'s canonical JSON: keys sorted, no spaces (the same for what is written and what is read back:
+    a float's repr round-trips)."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":")).encode()
+
+
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
     """The cache key of ``cfg``'s frame (loads the scene, or remembers it:
     :func:`~tlm.experiments.frame_keys.scene_key`; a bad scene is an InputError)."""
@@ -152,18 +185,33 @@ def is_cached(key: str) -> bool:
     the summary describes (its size and sha256). An entry
     damaged or of an older format is not (:func:`cached_render` renders it again, as a miss):
     a sweep lets one point render it first, as for a frame not cached, and the others read it
-    (:func:`tlm.experiments.sweep._dispatch`); nothing is said or removed here."""
+    (:func:`tlm.experiments.sweep._dispatch`); nothing is said or removed here. A look, not a use (``tlm sweep
+    --dry-run`` counts the frames it would read so): its files are read without changing their access times
+    (:func:`~tlm.experiments.frame_keys.looked`), which ``tlm cache prune`` takes for their last use, nor their
+    modification times."""
     d = cache_dir()
     path, side = d / f"{key}.npz", d / f"{key}.json"
     if not (path.is_file() and side.is_file()):
         return False
     try:
-        summary = json.loads(side.read_text(encoding="utf-8"))
+        summary = json.loads(_looked(side).decode("utf-8"))
     except (OSError, ValueError):
         return False
     return (isinstance(summary, dict) and summary.get("format") == SUMMARY_FORMAT
-            and summary_problem(summary) is None and digest_problem(path, summary.get("npz")) is None
-            and (summary["pmap"] is None or digest_problem(_image_file(path), summary["pmap"]) is None))
+            and summary_problem(summary) is None and seal_problem(summary) is None
+            and summary.get("code_fingerprint") == code_fingerprint()
+            and _looked_digest(path) == summary.get("npz")
+            and (summary["pmap"] is None or _looked_digest(_image_file(path)) == {
+                k: summary["pmap"].get(k) for k in ("size", "sha256")}))
+
+
+def _looked_digest(path: Path) -> dict | None:
+    """``path``'s size and sha256 read as a look (:func:`~tlm.experiments.frame_keys.looked`), or None where it
+    cannot be read."""
+    try:
+        return _looked(path, digest=True)
+    except OSError:
+        return None
 
 
 def _image_file(path: Path) -> Path:
@@ -231,7 +279,10 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
                 with write_atomic(_image_file(path), "wb") as fh:  # (whole or not at all)
                     np.save(fh, pmap)
                 side_text["pmap"] = {**summary["pmap"], **file_digest(_image_file(path))}
-            write_file(side, json.dumps(side_text, indent=1) + "\n")
+            # (the code that wrote it, for tlm cache: an entry of other code is never read again by this one, its
+            # key holds the code; and the sidecar's own digest, last: checked as it is read, _load_entry)
+            side_text["code_fingerprint"] = code_fingerprint()
+            write_file(side, json.dumps(sealed(side_text), indent=1) + "\n")
         except OSError as e:  # a read-only (or full) cache only costs speed, said once (its folder's mkdir's too:
             # a file put in its place since this process first looked at it)
             cache_write_failed(path, e)
@@ -381,9 +432,15 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
                  else f"format {json.dumps(fmt)[:60]}: not a functional-cache sidecar's")
         return None
     problem = summary_problem(summary)
+    if problem is None:  # (its digest, then the code it names: its key's, whose code it is)
+        problem = seal_problem(summary)
+    if problem is None and summary.get("code_fingerprint") != code_fingerprint():
+        problem = f"its 'code_fingerprint' {json.dumps(summary.get('code_fingerprint'))[:40]} is not this code's"
     if problem is not None:
         _damaged(side, path, problem)
         return None
+    for held in (SEAL, "code_fingerprint"):  # (the sidecar's, not the summary's: as a frame rendered now gives it)
+        summary.pop(held)
     npz = summary.pop("npz", None)
     problem = digest_problem(path, npz)
     if problem is not None:

@@ -66,7 +66,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tlm.cache_admin import partial_computer
+from tlm.cache_admin import human, partial_computer
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.reference_cache import PARTIAL_VERSION, partial_info, partial_path, partial_rounds
 from tlm.kernels.engine import engine
@@ -331,7 +331,7 @@ class Partial:
             if not self.short:
                 self.short = True
                 self._tell(f"reference {self.key}: its rounds are not saved for a resume: {self.path.parent} has "
-                           f"{free / 1e6:.1f} MB free, a save takes {size / 1e6:.1f} MB (looked at again every "
+                           f"{human(free)} free, a save takes {human(size)} (looked at again every "
                            f"{SAVE_SECONDS:.0f} s; an interrupt loses the rounds since the last save)", warning=True)
             return
         try:

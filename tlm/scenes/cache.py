@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.caches import (
-    cache_root,
+    cache_needed,
     cache_write_failed,
     cache_written,
     digest_problem,
@@ -93,8 +93,9 @@ def writable() -> bool:
 
 
 def cache_dir() -> Path:
-    """``scenes`` in tlm's cache folder (:func:`tlm.caches.cache_home`)."""
-    return cache_root("scenes")
+    """``scenes`` in tlm's cache folder (:func:`tlm.caches.cache_home`); a mesh file's load needs it: a line that it
+    cannot be written is said then (:func:`~tlm.caches.cache_needed`; a scene of no mesh file loses nothing by it)."""
+    return cache_needed("scenes")
 
 
 @functools.cache
