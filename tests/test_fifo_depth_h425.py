@@ -84,8 +84,8 @@ def test_the_peaks_tell_exactly_when_the_default_depth_runs_the_same(t, i, entri
         assert why is None
         return
     n, e = peaks["peak_packets"], peaks["peak_entries"]  # (h508: packets, entries of the depth, addresses)
-    assert why.startswith(f"no FIFO held more than {n} packet{'s' if n != 1 else ''}, {e} entries of {depth} (slots: ")
-    assert f" or {peaks['peak_addresses']} triangle addresses (its packets' all, not cut to the depth) at once" in why
+    assert why.startswith(f"no FIFO held more than {n} packet{'s' if n != 1 else ''}, entries {e} of {depth} (an ")
+    assert f" or triangle addresses {peaks['peak_addresses']} (not cut to the depth) at once" in why
     assert ("no put ever waited" in why) is (peaks["waited"] == 0)
     assert (f"{peaks['least_waited']} triangle addresses or more" in why) is (peaks["waited"] > 0)
     (line,) = [w for w in stream_warnings(timing, RunConfig(arch=arch)) if w.startswith("arch.fifo_depth")]
@@ -112,7 +112,7 @@ def test_a_run_whose_cycles_the_depth_leaves_alone_says_so_beside_the_estimate()
     assert "arch.fifo_depth" not in timing_inert(timing, cfg.arch)
     (line,) = fifo_depth_lines(timing, cfg.arch)
     assert line.startswith(f"arch.fifo_depth = 64 changes no simulated cycle in this run (cycles, stalls and frame "
-                           f"times are those of the default {DEFAULT}): no FIFO held more than 1 packet, 64 entries "
+                           f"times are those of the default {DEFAULT}): no FIFO held more than 1 packet, entries 64 "
                            "of 64")
     assert line in stream_warnings(timing, cfg)
     assert timing_dict(timing, cfg.arch, programs)["fifo"]["peak_entries"] == 64  # results.json timing.fifo
@@ -127,8 +127,8 @@ def test_the_report_says_the_peaks_under_the_cycle_breakdown():
     from tlm.report.cycles import fifo_caption
 
     timing, _, _ = _ti(1, 5, [600] * 4, 64)
-    assert fifo_caption(timing.fifo) == (" Traversal-to-Intersection FIFOs: none held more than 1 packet, 64 entries "
-                                         "of 64 (slots: a packet takes one per triangle address, the whole FIFO at "
-                                         "most) or 600 triangle addresses (its packets' all, not cut to the depth) at "
-                                         f"once; {timing.fifo['waited']} puts waited for room (timing.fifo).")
+    assert fifo_caption(timing.fifo) == (" Traversal-to-Intersection FIFOs: none held more than 1 packet, entries "
+                                         "64 of 64 (an entry a triangle address, a packet the whole FIFO at most) or "
+                                         "triangle addresses 600 (not cut to the depth) at once; "
+                                         f"{timing.fifo['waited']} puts waited for room (timing.fifo).")
     assert fifo_caption(None) == ""  # (a results.json written before timing.fifo)

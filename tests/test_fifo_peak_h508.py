@@ -69,9 +69,9 @@ def test_at_depth_1_the_warning_says_one_entry_and_the_addresses_it_held():
     assert (peaks["peak_entries"], peaks["peak_addresses"], peaks["peak_packets"]) == (1, 600, 1)
     assert fifo_depth_alike(peaks, 1, DEFAULT.fifo_depth)
     why = timing_inert(timing, arch)["arch.fifo_depth"]
-    assert why.startswith("no FIFO held more than 1 packet, 1 entry of 1 (slots: a packet takes one per triangle "
-                          "address, the whole FIFO at most) or 600 triangle addresses (its packets' all, not cut to "
-                          "the depth) at once (timing.fifo: peak_packets, peak_entries, peak_addresses); "), why
+    assert why.startswith("no FIFO held more than 1 packet, entries 1 of 1 (an entry a triangle address, a packet "
+                          "the whole FIFO at most) or triangle addresses 600 (not cut to the depth) at once "
+                          "(timing.fifo: peak_packets, peak_entries, peak_addresses); "), why
     assert "1 entries" not in why
 
 
@@ -80,13 +80,13 @@ def test_the_caption_says_the_addresses_and_an_older_record_leaves_them_out():
     from tlm.report.cycles import fifo_caption
 
     timing, _ = _ti(1, 5, [600] * 4, 64)
-    held = ("1 packet, 64 entries of 64 (slots: a packet takes one per triangle address, the whole FIFO at most) "
-            "or 600 triangle addresses (its packets' all, not cut to the depth)")
+    held = ("1 packet, entries 64 of 64 (an entry a triangle address, a packet the whole FIFO at most) "
+            "or triangle addresses 600 (not cut to the depth)")
     assert fifo_caption(timing.fifo) == (f" Traversal-to-Intersection FIFOs: none held more than {held} at once; "
                                          f"{timing.fifo['waited']} puts waited for room (timing.fifo).")
     old = {k: v for k, v in timing.fifo.items() if k != "peak_addresses"}  # a results.json from before h508
-    assert fifo_held(old) == ("1 packet or 64 entries of 64 (slots: a packet takes one per triangle address, "
-                              "the whole FIFO at most)")
+    assert fifo_held(old) == ("1 packet or entries 64 of 64 (an entry a triangle address, a packet the whole "
+                              "FIFO at most)")
 
 
 def _committed():

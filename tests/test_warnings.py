@@ -347,8 +347,8 @@ def test_what_only_the_run_can_tell_is_warned_of(tmp_path, capsys):
         "arch.pipelines = 32: 16 of the 32 image tiles have no pixels (a 4x4 image cut into a 4x8 grid): a pipeline "
         "given one has no pixel work in it",
         "arch.fifo_depth = 2048 changes no simulated cycle in this run (cycles, stalls and frame times are those of "
-        "the default 1024): no FIFO held more than 1 packet, 924 entries of 2048 (slots: a packet takes one per "
-        "triangle address, the whole FIFO at most) or 924 triangle addresses (its packets' all, not cut to the depth) "
+        "the default 1024): no FIFO held more than 1 packet, entries 924 of 2048 (an entry a triangle address, a "
+        "packet the whole FIFO at most) or triangle addresses 924 (not cut to the depth) "
         "at once (timing.fifo: peak_packets, peak_entries, peak_addresses); every "
         "put found its FIFO empty, so no put ever waited, at depth 1024 or at 2048; only timing.granularity, the "
         "packets-of-one estimate, reads the depth (lower arch.packet_size to see it in the cycles)"]

@@ -178,10 +178,11 @@ def fifo_depth_alike(peaks: dict, depth: int, other: int) -> bool:
 def fifo_held(peaks: dict) -> str:
     """The most the FIFOs of ``peaks`` (``timing.fifo``) held at once, in words: packets, entries
     (slots, the depth at most) and triangle addresses (not cut to the depth; a results.json
-    written before they were recorded: left out)."""
+    written before they were recorded: left out). Worded so that runs differing in these counts
+    differ in numbers only (the report lists such lines as one kind: no 'entry' beside 'entries')."""
     n, e, depth, a = peaks["peak_packets"], peaks["peak_entries"], peaks["depth"], peaks.get("peak_addresses")
-    held = (f"{n} packet{'s' if n != 1 else ''}, {e} entr{'ies' if e != 1 else 'y'} of {depth} (slots: a packet "
-            "takes one per triangle address, the whole FIFO at most)")
+    held = (f"{n} packet{'s' if n != 1 else ''}, entries {e} of {depth} (an entry a triangle address, a packet "
+            "the whole FIFO at most)")
     if a is None:
         return held.replace(", ", " or ", 1)
-    return f"{held} or {a} triangle address{'es' if a != 1 else ''} (its packets' all, not cut to the depth)"
+    return f"{held} or triangle addresses {a} (not cut to the depth)"
