@@ -26,7 +26,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.storage_live", "tlm.storage_swap",  # (h334: a process's writers, the swap of a folder: out of tlm.storage)
      "tlm.storage_carry",  # (h456: what a rerun keeps of the user's files in an output's folder, out of tlm.storage)
      "tlm.fingerprint", "tlm.registry", "tlm.progress", "tlm.whole_imports", "tlm.caches", "tlm.config_words",
-     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths", "tlm.config_read",
+     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin",
+     "tlm.cache_look",  # (h517: a look at an entry that is no use, what an entry is: out of tlm.cache_admin)
+     "tlm.config_paths", "tlm.config_read",
      "tlm.config_sections"),
     ("tlm.scenes",),
     ("tlm.kernels",

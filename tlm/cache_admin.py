@@ -3,7 +3,8 @@
 * :data:`NAMES` — the caches under :func:`tlm.caches.cache_home`, each a folder of it; :func:`scan` —
   one cache's entries (:class:`Entry`), the writes in progress and the files that are not tlm's;
   :func:`survey` — every cache's (:class:`Cache`); :func:`describe` — what an entry is, and whether a frame is
-  **stale**: written by other code (its sidecar's ``code_fingerprint``), under a key this code never reads.
+  **stale**: written by other code (its sidecar's ``code_fingerprint``), under a key this code never reads
+  (:mod:`tlm.cache_look`, with :func:`peek`, a look that is no use; another user's frame is not read, nor judged).
 * :func:`choose` — the entries a prune removes (last used before a time, then the least recently used
   until the rest fit a size); :func:`remove` — entries removed whole, in an order no reader can mistake
   for a damaged entry; :func:`prune` — both, as ``tlm cache prune``/``clear`` and the API do it
@@ -52,6 +53,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tlm.cache_look import HEX as _HEX
+from tlm.cache_look import PARTIAL as _PARTIAL  # (references/: the rounds saved of a reference, a file)
+from tlm.cache_look import describe as describe  # (what an entry is: out of here, h517)
+from tlm.cache_look import peek as peek  # (a look that is no use)
 from tlm.caches import cache_home, remove_entry
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.fingerprint import code_fingerprint
@@ -61,11 +66,9 @@ from tlm.storage_live import process_start
 NAMES = ("functional", "scenes", "references", "oracle", "tracebacks", "numba")
 BUSY_SECONDS = 3600  # a temporary file (or an entry without its sidecar) younger than this is a write in progress
 
-_HEX = r"[0-9a-f]{16,64}"
 _FUNCTIONAL = re.compile(rf"({_HEX})\.(npz|json|pmap\.npy)")
 _SCENES = re.compile(rf"((?:mesh|normals|key)-{_HEX})\.(npz|json)")
 _FOLDER_KEY = re.compile(_HEX)
-_PARTIAL = re.compile(rf"{_HEX}\.partial\.npz")  # (references/: the rounds saved of a reference, a file)
 _TRACEBACK = re.compile(r"tlm-traceback-.+\.txt")
 _NUMBA = re.compile(r"(.+\.py\d+)\.(nbi|\d+\.nbc)")
 # the temporary names of tlm's writers (tlm.storage: write_atomic, atomic_folder, write_files, a kept
@@ -75,10 +78,6 @@ _TEMPORARY = re.compile(r"\..+\.(?:tmp|old|new|claim)-?(?:h[A-Za-z0-9]*-)?\d+(?:
 _WRITER = re.compile(r"(h[A-Za-z0-9]*)-(\d+)")  # (the host and process a temporary name carries)
 _MARKERS = {"functional": ".json", "numba": ".nbi"}  # the file a writer puts in place last
 _SIDECAR_FIRST = (".json", ".nbi")  # removed first: an entry without them is no entry to its reader
-# what an entry is (:attr:`Entry.kind`), by its cache (a scenes entry: by its name's start)
-_KINDS = {"functional": "frame", "references": "reference", "oracle": "ground truth", "tracebacks": "traceback",
-          "numba": "kernel", "mesh": "mesh", "normals": "crease normals", "key": "scene key"}
-_CODE_LINE = re.compile(rb'\n "code_fingerprint": "([0-9a-f]+)"[,\n]')  # (a sidecar's, as frames writes it)
 
 
 @dataclass
@@ -149,8 +148,8 @@ class Cache:
                 "leftovers": sum(e.leftover for e in self.entries), "being_written": len(self.busy),
                 "being_written_bytes": self.busy_size, "not_tlms": [str(p) for p in self.other],
                 "not_tlms_bytes": self.other_size, "problem": self.problem or None,
-                **({"stale": len(stale), "stale_bytes": sum(e.size for e in stale)}
-                   if self.name == "functional" else {}),
+                **({"stale": len(stale), "stale_bytes": sum(e.size for e in stale), "not_judged": sum(
+                    e.kind == "frame" and e.stale is None for e in self.entries)} if self.name == "functional" else {}),
                 "partials": [{**e.row(), "being_written": id(e) not in listed} for e in self.partials]}
 
 
@@ -263,46 +262,6 @@ def dangling(path: Path) -> str | None:
     return None
 
 
-def describe(e: Entry, whole: bool = False) -> None:
-    """Set what the entry ``e`` is: its :attr:`~Entry.kind`; a frame's :attr:`~Entry.stale` (its sidecar's
-    ``code_fingerprint`` not :func:`~tlm.fingerprint.code_fingerprint`); ``whole``: its :attr:`~Entry.about` too,
-    from a frame's sidecar (scene, resolution, mode) or a reference's or ground truth's ``meta.json`` and image's
-    header. A look is no use: access times are left as they were (:func:`peek`)."""
-    e.kind = "partial" if _PARTIAL.fullmatch(e.name) else _KINDS.get(e.name.split("-")[0] if e.cache == "scenes"
-                                                                     else e.cache, "")
-    if e.kind == "frame":
-        side = next((f for f in e.files if f.name.endswith(".json")), None)
-        got = (_sidecar(side, whole) if side else None) or {}
-        e.stale = got.get("code_fingerprint") != code_fingerprint()
-        scene, plan = (v if isinstance(v := got.get(k), dict) else {} for k in ("scene", "plan"))
-        reasons = v if isinstance(v := plan.get("reasons"), dict) else {}  # (the plan's: "mode 'pmap' asks ...")
-        modes = [m[1] for r in reasons.values() if isinstance(r, str) and (m := re.match(r"mode '(\w+)'", r))]
-        e.about = {"scene": scene.get("name"), "resolution": scene.get("resolution"),
-                   "mode": got.get("mode") or ("pmap" if "fgather" in reasons else modes[0] if modes else None)}
-    elif whole and e.kind in ("reference", "ground truth"):
-        meta = _sidecar(e.files[0] / "meta.json", True) or {}
-        m = re.search(rb"'shape': \((\d+), (\d+), 3\)", peek(e.files[0] / ("reference.npy" if e.kind == "reference"
-                                                                       else "image.npy"), lambda f: f.read(512)) or b"")
-        e.about = {"scene": meta.get("scene"), "resolution": [int(m[2]), int(m[1])] if m else None,
-                   **{k: meta.get(k) for k in (("photons", "rounds") if e.kind == "reference" else ("spp",))}}
-    e.about = {k: v for k, v in e.about.items() if (isinstance(v, list) and len(v) == 2 and all(
-        type(x) is int for x in v) if k == "resolution" else isinstance(v, (str, int)) and not isinstance(v, bool))}
-
-
-def _sidecar(path: Path, whole: bool) -> dict | None:
-    """The JSON object in the file ``path``, or None; not ``whole``: its top-level ``code_fingerprint`` alone where
-    its line says it, by a regular expression, not a parse (``tlm cache`` of 5,000 frames: 0.04 s, not 0.3)."""
-    data = peek(path)
-    if data is not None and not whole:
-        if m := _CODE_LINE.search(data):
-            return {"code_fingerprint": m[1].decode()}
-        if b'"code_fingerprint"' not in data:
-            return {}  # (none: a frame of a tlm before the field)
-    with contextlib.suppress(ValueError, RecursionError, TypeError):
-        return v if isinstance(v := json.loads(data), dict) else None
-    return None
-
-
 def partial_info(path: Path) -> dict | None:
     """The header (``info``) of the rounds saved of a reference at ``path`` (``references/<key>.partial.npz``,
     :mod:`tlm.experiments.reference_resume`), or None where there are none, it is no regular file (a FIFO is not
@@ -319,33 +278,6 @@ def partial_info(path: Path) -> dict | None:
 
     info = peek(path, read)
     return info if isinstance(info, dict) else None
-
-
-def peek(path: Path, read=lambda fh: fh.read()):
-    """``read(fh)`` of the file ``path`` (its bytes), its access time left as it was (``O_NOATIME``, else set back);
-    None where it is no regular file (a FIFO is not waited on), or it cannot be read (whatever numpy or json say)."""
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
-    try:
-        try:
-            fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
-        except PermissionError:  # (O_NOATIME: the owner's alone)
-            fd = os.open(path, flags)
-    except OSError:
-        return None
-    try:
-        before = os.fstat(fd)
-        if not stat.S_ISREG(before.st_mode):
-            return None
-        with open(fd, "rb", closefd=False) as fh:
-            got = read(fh)
-        if (after := os.fstat(fd)).st_atime_ns != before.st_atime_ns and os.utime in os.supports_fd:
-            with contextlib.suppress(OSError):  # (not the owner's: its access time is the system's)
-                os.utime(fd, ns=(before.st_atime_ns, after.st_mtime_ns))  # (a reader's mark of use meanwhile kept)
-        return got
-    except Exception:
-        return None
-    finally:
-        os.close(fd)
 
 
 def partial_rounds(info: dict | None) -> int:

@@ -175,6 +175,13 @@ def _partials(entries: list) -> str:
     return f" ({len(partials)} partial{'' if len(partials) == 1 else 's'}: {', '.join(words)})"
 
 
+def _unjudged(entries: list) -> str:
+    """``; 3 not judged: ...``, where frames of another user's were not read (:func:`tlm.cache_look.peek`)."""
+    n = sum(e.kind == "frame" and e.stale is None for e in entries)
+    return (f"; {n} not judged: {'a frame' if n == 1 else 'frames'} of another user's, not read (a read would mark "
+            f"{'it' if n == 1 else 'them'} used now, which only the owner may set back)") if n else ""
+
+
 def _described(e) -> str:
     """What the entry ``e`` is, in words, ``, stale`` after a stale frame's: ``frame cornell 320x240 pmap, stale``."""
     return e.what() + (", stale" if e.stale else "")
@@ -235,7 +242,8 @@ def _info(names: list[str], as_json: bool) -> int:
             stale = [e for e in c.entries if e.stale]
             _out(f"functional: {len(stale)} of {_count(c.entries)} stale ({ca.human(sum(e.size for e in stale))} of "
                  f"{ca.human(c.size)}): frames of other code than this tlm's, which it never reads"
-                 + ("; tlm cache list --stale lists them, tlm cache prune --stale removes them" if stale else ""))
+                 + ("; tlm cache list --stale lists them, tlm cache prune --stale removes them" if stale else "")
+                 + _unjudged(c.entries))
     busy = [c for c in caches if c.busy]
     other = [p for c in caches for p in c.other]
     line = f"the folder in all: {ca.human(ca.folder_size(home))}"
@@ -269,13 +277,14 @@ def _list(names: list[str], as_json: bool, sort: str, stale: bool) -> int:
         return 0
     _out(f"tlm's cache entries in {home} (this tlm's code: {ca.code_fingerprint()})")
     rows = [("entry", "what", "size", "last use", "stale")] + [
-        (e.shown(), e.what(), ca.human(e.size), _when(e.last_use), "stale" if e.stale else "") for e in entries]
+        (e.shown(), e.what(), ca.human(e.size), _when(e.last_use),
+         "stale" if e.stale else "not judged" if e.kind == "frame" and e.stale is None else "") for e in entries]
     widths = [max(len(r[k]) for r in rows) for k in range(5)]
     for r in rows:
         _out("  ".join(v.rjust(w) if k == 2 else v.ljust(w) for k, (v, w) in enumerate(zip(r, widths))).rstrip())
     old = [e for e in entries if e.stale]
     _out(f"{_count(entries)} ({ca.human(sum(e.size for e in entries))}), {len(old)} stale "
-         f"({ca.human(sum(e.size for e in old))}){_skipped(caches, 'not entries')}")
+         f"({ca.human(sum(e.size for e in old))}){_unjudged(entries)}{_skipped(caches, 'not entries')}")
     for p in [ca.dangling(home), *(c.problem for c in caches)]:
         if p:
             _out(p)
