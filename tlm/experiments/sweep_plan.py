@@ -280,21 +280,28 @@ def _saved_rounds(key: str) -> int:
 def _cached_meta(key: str) -> dict | None:
     """The ``meta.json`` of the cached reference ``key`` where the entry is whole (its fields of their types, its
     ``reference.npy`` the file the metadata describes), else None: read only (a damaged one is neither said nor
-    removed here: the sweep's own read does both, and computes it again)."""
-    from tlm.caches import digest_problem, fields_problem
+    removed here: the sweep's own read does both, and computes it again). Looked at, not used: its files' access
+    times stay as they were (:func:`~tlm.experiments.frame_keys.looked`), which ``tlm cache prune`` reads as their
+    last use (a ``--dry-run --reference`` made a reference unused for 40 days used now)."""
+    from tlm.caches import fields_problem
+    from tlm.experiments.frame_keys import looked
     from tlm.experiments.reference_cache import META_FIELDS, META_OPTIONAL, cache_dir
 
     folder = cache_dir() / key
     try:
-        meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+        meta = json.loads(looked(folder / "meta.json").decode("utf-8"))
     except (OSError, ValueError):
         return None
     if not isinstance(meta, dict) or meta.get("key", key) != key or fields_problem(meta, META_FIELDS, META_OPTIONAL):
         return None
     npy = meta.get("npy")
-    if not isinstance(npy, dict) or digest_problem(folder / "reference.npy", npy) is not None:
+    if not isinstance(npy, dict) or not isinstance(npy.get("size"), int):
         return None
-    return meta
+    try:
+        got = looked(folder / "reference.npy", digest=True)
+    except OSError:  # (gone, unreadable, a folder in its place)
+        return None
+    return meta if (got["size"], got["sha256"]) == (npy["size"], npy.get("sha256")) else None
 
 
 def _stale(out: Path) -> int:
