@@ -87,6 +87,7 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     sweep,
     thesis,
     tlm_version,  # noqa: F401  (not in __all__: tlm --version's, the running code's version)
+    version_line,  # noqa: F401  (not in __all__: tlm --version's line)
     write_calibration,
     write_report,
 )

@@ -302,6 +302,15 @@ def tlm_version() -> str:
     return running()
 
 
+def version_line() -> str:
+    """``tlm --version``'s line: what identifies the code that runs, as ``results.json`` records it
+    (:func:`tlm.experiments.provenance.version_line`: the version, the git commit and whether the checkout is
+    modified, the code fingerprint)."""
+    from tlm.experiments.provenance import version_line as line
+
+    return line()
+
+
 def _package_dir() -> Path:
     """The folder of the tlm package that runs (site-packages/tlm in an installed copy)."""
     return Path(__file__).resolve().parent

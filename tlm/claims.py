@@ -39,7 +39,7 @@ from tlm.errors import EnvironmentFailure, InputError, path_shown, quoted
 from tlm.progress import interrupts_deferred
 from tlm.storage_errors import takes_no_files
 from tlm.storage_json import naming
-from tlm.storage_live import _GUARD, _RUNNING, pid_alive, process_tag
+from tlm.storage_live import _GUARD, _RUNNING, pid_alive, process_tag, sibling_stem
 from tlm.storage_lock import _host
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
@@ -238,7 +238,8 @@ def _command(pid: int, most: int = 100) -> str:
     return f" ({line if len(line) <= most else line[:most - 3] + '...'})"
 
 
-_CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
+_CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``; a long name's
+# prefix and hash, :func:`tlm.storage_live.sibling_stem`, within the file system's NAME_MAX)
 # (reentrant: a claim left open, a ``claimed`` block entered and never left, is let go by the garbage collector,
 # whose close of its generator takes this lock in whatever thread it runs, one holding it too, as a claim is
 # taken: a plain lock waited there for ever, and every later claim of the process with it, h431)
@@ -316,7 +317,7 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
     """The locked claim file of the resolved destination ``out`` (:func:`claimed`; ``given``:
     as the caller named it, for the messages): its descriptor, its path and the folders made
     on the way to it."""
-    path = out.parent / f".{out.name}{_CLAIMED}"
+    path = out.parent / f".{sibling_stem(out)}{_CLAIMED}"
     made = [d for d in (out.parent, *out.parent.parents) if not d.exists()][::-1]
     for _ in range(100):
         try:
@@ -487,7 +488,7 @@ def refuse_held(out: Path, given: Path, marker: str, key: str = "--out", in_plac
     with _CLAIMS_LOCK:
         if os.fsdecode(out) in _CLAIMS:  # (this process's own: a run's write of the folder it claimed)
             return
-    path = out.parent / f".{out.name}{_CLAIMED}"
+    path = out.parent / f".{sibling_stem(out)}{_CLAIMED}"
     held = _held_claim(path)
     what = None
     if held is not None:
@@ -629,7 +630,7 @@ def drop_stale(out: Path) -> bool:
     A run that opened the file meanwhile takes a new one, or this one (:func:`_being_dropped`), never
     refused for it."""
     out = Path(out).resolve()
-    path = out.parent / f".{out.name}{_CLAIMED}"
+    path = out.parent / f".{sibling_stem(out, strict=False)}{_CLAIMED}"
     with _CLAIMS_LOCK:
         if os.fsdecode(out) in _CLAIMS:  # (this process's own: held)
             return False

@@ -31,7 +31,6 @@ from tlm.cli_signals import (
     signalled,
     signals,
     until_exit,
-    version,
     writes_files,
 )
 from tlm.cli_tables import GranularityProgress, print_granularity, print_point_warnings
@@ -427,7 +426,7 @@ def build_parser() -> argparse.ArgumentParser:
     :mod:`tlm.cli_parser`'s."""
     p = Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
-    p.add_argument("--version", action="version", version=version())
+    p.add_argument("--version", action=cli_parser.VersionAction)
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
     cli_parser.run_arguments(r)

@@ -9,6 +9,7 @@ options several commands share are :mod:`tlm.cli_args`'s, ``tlm cache``'s argume
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from tlm import api
@@ -17,6 +18,23 @@ from tlm.cli_args import NO_BAR, figure_files, folder_name, no_progress, no_repo
 from tlm.cli_args import experiment_argument as _experiment_file
 from tlm.cli_report import say_err
 from tlm.errors import path_shown
+
+
+class VersionAction(argparse.Action):
+    """``tlm --version``: one line (never wrapped to the terminal's width, as argparse's own would) saying what
+    identifies the code that runs, computed only when asked (:func:`tlm.api.version_line`:
+    the version, the git commit and whether the checkout is modified, the code fingerprint ``results.json``
+    records), then the exit."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, **kw):
+        kw.setdefault("help", "show what identifies this tlm's code (version, git commit, code fingerprint) and exit")
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from tlm.api import version_line
+
+        parser._print_message(version_line() + "\n", sys.stdout)
+        parser.exit()
 
 
 def _set_option(parser: argparse.ArgumentParser, where: str, example: str = "'resolution=[64, 64]'") -> None:

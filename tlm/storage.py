@@ -84,10 +84,12 @@ from tlm.storage_live import (  # noqa: F401  (re-exported)
     _writer,
     hold,
     left_by_the_gone,
+    name_max,
     new_writer,
     pid_alive,
     process_tag,
     release,
+    sibling_stem,
 )
 from tlm.storage_lock import _host, folder_lock  # (_host: storage._host, tlm.claims's; _left_by_the_gone asks it)
 from tlm.storage_swap import mounted as _mounted
@@ -214,7 +216,7 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     """
     out = Path(out)
     if not out.exists():
-        tmp = out.with_name(f".{out.name}.claim{process_tag()}{_thread_tag()}")
+        tmp = out.with_name(f".{sibling_stem(out)}.claim{process_tag()}{_thread_tag()}")
         shutil.rmtree(tmp, ignore_errors=True)
         try:  # (a failure names the folder and its marker, not the prepared sibling, which is gone)
             with naming(out):
@@ -325,7 +327,7 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | object | None
             raise
         out = Path(out).resolve()  # (asked again under the lock at the swap)
     writer = _writer()
-    tmp = out.parent / f".{out.name}.tmp-{writer}"
+    tmp = out.parent / f".{sibling_stem(out)}.tmp-{writer}"
     _hold(tmp.name)  # (before it exists: no other thread's clean_stale may take it for a leftover)
     try:
         names = None if owned is _WHOLE else cast("Collection[str] | None", owned)
@@ -361,7 +363,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         if not clean_once or _first_clean(out.parent):
-            clean_stale(out.parent, re.escape(out.name) if not clean_once else ".+")
+            clean_stale(out.parent, re.escape(sibling_stem(out, strict=False)) if not clean_once else ".+")
         shutil.rmtree(tmp, ignore_errors=True)  # (an earlier process's of the same id and number)
         tmp.mkdir()
     except OSError as e:
@@ -466,7 +468,7 @@ def _keep_beside(tmp: Path, out: Path) -> Path | None:
     a thread other than the main one), else the first of ``OUT.unsaved-PID-2``, ``-3``, ... that
     is free: a name is taken by making it (an empty folder, which the rename then replaces), so
     an earlier kept output, or anything else of that name, is never replaced. Its path, or None."""
-    base = f"{out.name}.unsaved-{os.getpid()}{_thread_tag()}"
+    base = f"{sibling_stem(out, strict=False)}.unsaved-{os.getpid()}{_thread_tag()}"
     for n in range(1, 10_000):
         kept = out.parent / (base if n == 1 else f"{base}-{n}")
         try:
@@ -522,7 +524,7 @@ def _temporary_file(path: Path) -> Path:
     """The temporary file of a :func:`write_atomic` of ``path``: the first of ``.<name>.tmp<host>-<pid>``
     (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now. The
     host (:func:`process_tag`): on a folder shared between machines a process id alone names no process."""
-    base = f".{path.name}.tmp{process_tag()}{_thread_tag()}"
+    base = f".{sibling_stem(path)}.tmp{process_tag()}{_thread_tag()}"
     with storage_live._LIVE_LOCK:
         tmp, n = path.with_name(base), 1
         while os.path.abspath(tmp) in _FILES:

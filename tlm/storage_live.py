@@ -10,10 +10,13 @@
   :data:`_FILES`, under :data:`_LIVE_LOCK`, which a forked child makes anew: read it as
   ``storage_live._LIVE_LOCK``, never a copy of it).
 * :func:`left_by_the_gone` — the entries of a folder that a process now gone left.
+* :func:`sibling_stem` — what those names carry of their destination's name: a long name's prefix and hash, so
+  that they stay within the file system's NAME_MAX (:func:`name_max`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import os
 import re
@@ -21,6 +24,7 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
+from tlm.errors import InputError
 from tlm.storage_lock import _host
 
 # The files of tlm.claims.sharing in a sweep's folder (its lock, and one per running sweep): here, below both
@@ -61,6 +65,50 @@ def process_tag() -> str:
     files and folders, claims), a sweep folder's holder record and a traceback file carry it: on a
     disk shared between machines a process id alone names no process."""
     return f"{_host()}-{os.getpid()}"
+
+
+# the most bytes a hidden sibling's name adds to ``.<stem>``: ``.old-h<host, 33>-<pid>-<n>-<m>``, a thread's ``-t<id>``
+_SIBLING_ROOM = 80
+
+
+def name_max(folder: Path) -> int:
+    """The most bytes a name may have in ``folder`` (its nearest folder that exists): ``PC_NAME_MAX``, 255 untold."""
+    for d in (folder, *folder.parents):
+        try:
+            return int(os.pathconf(d, "PC_NAME_MAX"))
+        except (FileNotFoundError, NotADirectoryError):
+            continue
+        except (OSError, ValueError):
+            break
+    return 255
+
+
+def sibling_stem(path: str | os.PathLike, strict: bool = True) -> str:
+    """What the siblings tlm makes beside ``path`` (``.<stem>.tmp-...``, ``.<stem>.tlm-running``,
+    ``<stem>.unsaved-...``) carry of its name: the name itself where the longest of them stays within
+    the file system's NAME_MAX (:func:`name_max`), else a prefix of it, ``~`` and 12 hex digits of the
+    name's sha256: unique in its folder, the same in every process, and matched by the patterns that find
+    them (:func:`tlm.storage.clean_stale`). ``strict``: a name past NAME_MAX itself is refused (an InputError: no
+    such file or folder can be); else returned as it is."""
+    path = Path(path)
+    name = path.name
+    size = len(os.fsencode(name))
+    if size + 1 + _SIBLING_ROOM <= 128 or name in ("", ".", ".."):  # (within every NAME_MAX but the oldest ones)
+        return name
+    limit = name_max(path.parent)
+    if size > limit:
+        if strict:
+            raise InputError(f"a name of {size} bytes, past the {limit} this file system allows: give a shorter one",
+                             source=str(path))
+        return name
+    keep = limit - 1 - _SIBLING_ROOM
+    if size <= keep:
+        return name
+    digest = hashlib.sha256(os.fsencode(name)).hexdigest()[:12]
+    prefix = name
+    while prefix and len(os.fsencode(prefix)) > max(keep - 13, 0):
+        prefix = prefix[:-1]
+    return f"{prefix}~{digest}"
 
 
 # (reentrant, as tlm.claims' lock: a write_atomic or atomic_folder block left open in a reference cycle is closed

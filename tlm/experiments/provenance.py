@@ -224,6 +224,17 @@ def code_state() -> dict:
             "code_fingerprint": code_fingerprint()}
 
 
+def version_line() -> str:
+    """``tlm --version``'s line, what identifies the code that runs, as ``results.json`` records it
+    (:func:`code_state`): ``tlm 0.1.0 (Python 3.11.7; git <commit>[, modified]; code <code_fingerprint>)``;
+    ``no git checkout`` in place of the commit for an installed copy (its fingerprint, the same for the
+    same code, says which). Nothing heavy imported."""
+    state = code_state()
+    rev = state["git_revision"]
+    git = "no git checkout" if rev is None else f"git {rev}{', modified' if state['git_modified'] else ''}"
+    return f"tlm {tlm_version()} (Python {platform.python_version()}; {git}; code {state['code_fingerprint']})"
+
+
 def provenance(study: str | None, host_seconds: float | None) -> dict:
     """What a study folder records of where it came from (``provenance.json``)."""
     return {"study": study, "versions": versions(), **code_state(),
