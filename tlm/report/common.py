@@ -5,10 +5,9 @@ matplotlib's default style and tlm's own settings whatever the caller set (:func
 ``rcParams``, a matplotlibrc), theirs back after. The style survives greyscale printing: colours are told apart by
 luminance as well as hue, and every series also has its own hatch (bars) or marker and line style (lines).
 
-Every PNG is written by :func:`write_png`: the layout engine runs once and the figure is drawn once
-(``Figure.savefig`` alone draws a laid-out figure twice, once without output to run the layout), and one mathtext
-parser serves every figure, so that a tick label parsed for one figure (``10^2`` on a log axis) is not parsed again
-for the next (the parser keeps the last 50). The pixels are those ``savefig`` writes.
+Every PNG is written by :func:`write_png`, laid out once and drawn once (``Figure.savefig`` alone draws it twice), the
+pixels ``savefig`` writes, with one mathtext parser for every figure (a log axis's ``10^2`` parsed once); a name in
+it drawn as written (:func:`figure_text`: a folder's ``m$x^2$`` not as a formula, a tab as a space).
 
 The report's figure files are set by :func:`figure_output` (``tlm report --formats --dpi``): the PNG at ``dpi``
 (default :data:`DPI`), and where asked a PDF and an SVG beside it, of the same stem. They are saved from the one
@@ -20,10 +19,9 @@ font draws the text in another, of other widths, where glyphs as paths (``path``
 could not be edited. Neither file records the time it was written, so a report written again from the same inputs
 writes the same PDF and SVG files, byte for byte.
 
-Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_`` and ``-`` and the one ``.`` of
-``.png``, so that it works unquoted in a shell, in a URL and in LaTeX's ``\\includegraphics``; and one name is one
-figure within a report (two figures that would get the same name do not overwrite each other: the later gets a suffix
-from its key).
+Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_``, ``-`` and ``.png``'s ``.``,
+unquoted in a shell, a URL and LaTeX's ``\\includegraphics``; one name is one figure in a report (of two figures
+that would get one name, the later gets a suffix from its key).
 """
 
 from __future__ import annotations
@@ -45,6 +43,7 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 from matplotlib import ticker
+from matplotlib.axis import Axis
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.category import StrCategoryFormatter
 from matplotlib.figure import Figure as MplFigure
@@ -53,7 +52,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import Formatter, LogLocator
 
 from tlm.config_words import listing
-from tlm.errors import InputError
+from tlm.errors import LINE_ESCAPES, InputError
 from tlm.storage_json import escaped
 
 # Okabe-Ito colours, ordered so that neighbours differ in luminance (greyscale-safe)
@@ -78,8 +77,7 @@ def some(items: list[str]) -> str:
 
 
 def count(n: int, word: str, plural: str | None = None) -> str:
-    """``n`` and the word, singular for one: ``1 run``, ``0 runs``, ``2 studies`` (``plural``: where
-    it is not the word and ``s``)."""
+    """``n`` and the word, singular for one: ``1 run``, ``0 runs``, ``2 studies`` (``plural``: not word + ``s``)."""
     return f"{n} {word if n == 1 else plural or word + 's'}"
 
 
@@ -163,10 +161,9 @@ def log_labels(ticks) -> list[str]:
 
 
 def _log_candidates(lo: float, hi: float) -> list[list[float]]:
-    """The tick sets :class:`LogTicks` tries over ``lo`` to ``hi`` (> 0), in its order: the powers of
-    ten (every one, then every 2nd, 3rd, ...), 1-2-5 times them, round linear steps
-    (:class:`~matplotlib.ticker.MaxNLocator`, densest first), then 1-9 times the powers of ten; each
-    within the range and at most :data:`LOG_TICKS_MAX` ticks."""
+    """The tick sets :class:`LogTicks` tries over ``lo`` to ``hi`` (> 0), in its order: the powers of ten (every one,
+    then every 2nd, 3rd, ...), 1-2-5 times them, round linear steps (:class:`~matplotlib.ticker.MaxNLocator`, densest
+    first), then 1-9 times the powers of ten; each within the range and at most :data:`LOG_TICKS_MAX` ticks."""
     from matplotlib.ticker import MaxNLocator
 
     span = (lo * (1 - 1e-9), hi * (1 + 1e-9))
@@ -192,12 +189,11 @@ def _log_candidates(lo: float, hi: float) -> list[list[float]]:
 
 
 class LogTicks(LogLocator):
-    """The major ticks of a log axis (:func:`log_ticks`), chosen at each draw for the axis's length
-    then: the first of :func:`_log_candidates` whose labels (:func:`log_labels`, measured in the tick
-    labels' font) leave :data:`LOG_LABEL_GAP` between each two with three ticks or more, else with two,
-    else one that fits; where none does (an axis too short for two labels of any set), one tick: the sparsest
-    set's nearest the middle. The choice is remembered for the axis's range, length and font (matplotlib asks
-    for the ticks dozens of times a draw)."""
+    """The major ticks of a log axis (:func:`log_ticks`), chosen at each draw for the axis's length then: the first of
+    :func:`_log_candidates` whose labels (:func:`log_labels`, measured in the tick labels' font) leave
+    :data:`LOG_LABEL_GAP` between each two with three ticks or more, else with two, else one that fits; where none
+    does (an axis too short for two labels of any set), one tick: the sparsest set's nearest the middle. The choice
+    is remembered for the axis's range, length and font (matplotlib asks for the ticks dozens of times a draw)."""
 
     def __init__(self, axis: str = "x"):
         super().__init__(base=10.0)
@@ -328,9 +324,8 @@ def parse_dpi(dpi) -> int:
 
 
 def output(formats: str | Iterable[str] | None = None, dpi=None) -> Output:
-    """The checked :class:`Output` of ``formats`` (:func:`parse_formats`) and ``dpi``
-    (:func:`parse_dpi`). A bad value is an :class:`InputError` naming the option
-    (``--formats``, ``--dpi``), the value and what is allowed."""
+    """The checked :class:`Output` of ``formats`` (:func:`parse_formats`) and ``dpi`` (:func:`parse_dpi`). A bad value
+    is an :class:`InputError` naming the option (``--formats``, ``--dpi``), the value and what is allowed."""
     try:
         chosen = parse_formats(formats)
     except ValueError as e:
@@ -395,13 +390,13 @@ def report_style():
 
 
 def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
-    """Place each annotation of ``texts`` (in order) at the first of ``offsets`` (offset
-    points from its point, the first one above or right) where it covers no marker and no
-    label placed before it (its own point's markers aside); ``va`` follows the offset's sign (bottom above, top below).
+    """Place each annotation of ``texts`` (in order) at the first of ``offsets`` (offset points from its point, the
+    first one above or right) where it covers no marker and no label placed before it (its own point's markers
+    aside); ``va`` follows the offset's sign (bottom above, top below).
 
-    The figure is laid out first, as :func:`write_png` lays it out (at the PNG's resolution), so
-    that the boxes compared are those drawn. Where no offset is free, the label keeps the first
-    offset, or with ``hide`` is hidden; the hidden labels are returned."""
+    The figure is laid out first, as :func:`write_png` lays it out (at the PNG's resolution), so that the boxes
+    compared are those drawn. Where no offset is free, the label keeps the first offset, or with ``hide`` is hidden;
+    the hidden labels are returned."""
     if not texts:
         return []
     fig.set_dpi(current_output().dpi)
@@ -479,8 +474,7 @@ class Section:
     ``absent`` is the reason the section has nothing to show for these inputs (the report says so instead of dropping
     the section); ``notes`` are one-line remarks (what was left out of a figure and why). The page shows ``lead`` and
     the first ``shown`` figures; the other figures, the tables (``html``, unless ``html_open``) and the notes are behind
-    ``<details>`` so that the page reads in a few screens.
-    """
+    ``<details>`` so that the page reads in a few screens."""
 
     key: str
     title: str
@@ -495,9 +489,8 @@ class Section:
 
 
 def _lay_out(fig: MplFigure, engine) -> None:
-    """Run the figure's layout engine as ``Figure.draw`` runs it (a ValueError ignored), and keep its
-    warning that the decorations left the axes no room (constrained layout then leaves the figure as it
-    is) off stderr: a report prints no library warning (the figures size their legends to fit)."""
+    """Run the figure's layout engine as ``Figure.draw`` runs it (a ValueError ignored), its warning that the axes
+    got no room (the figure then left as it is) kept off stderr: a report prints no library warning."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="constrained_layout not applied", category=UserWarning)
         with contextlib.suppress(ValueError):
@@ -505,10 +498,9 @@ def _lay_out(fig: MplFigure, engine) -> None:
 
 
 def wrap_title(text: str, width_in: float, fontsize: float = 12.0) -> str:
-    """``text`` wrapped to lines that fit ``width_in`` inches at ``fontsize`` points (an axes title:
-    12 points by default); a title that fits is returned as it is."""
+    """``text`` wrapped to lines that fit ``width_in`` inches at ``fontsize`` points; a title that fits as it is."""
     chars = max(20, int(width_in * 72 / (fontsize * 0.6)))
-    return text if len(text) <= chars else textwrap.fill(text, chars)
+    return text if len(text) <= chars else textwrap.fill(text, chars, expand_tabs=False)  # (a tab: a space)
 
 
 # the parser an Agg renderer makes for itself, shared: it keeps the labels it parsed
@@ -520,27 +512,35 @@ VECTOR_RC = {"pdf.fonttype": 42, "svg.fonttype": "none"}
 
 
 def drawable(text: str) -> str:
-    """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
-    (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
-    text that a font draws and UTF-8 writes (matplotlib refuses a surrogate). Text without one is as it is
-    (:func:`tlm.storage_json.escaped`, as a CSV cell's)."""
+    """``text`` with each surrogate as an escape (:func:`tlm.storage_json.escaped`, as a CSV cell's): ``run_\\udcff``,
+    a byte not UTF-8, as ``run_\\xff``, text that a font draws and UTF-8 writes (matplotlib refuses a surrogate)."""
     return escaped(text)
 
 
+# a name's control character in a figure (no glyph): whitespace a space, another \xNN, as escaped_line; \n kept
+_FIGURE_ESCAPES = {c: " " if chr(c).isspace() else e for c, e in LINE_ESCAPES.items() if c != 10}
+
+
+def figure_text(text: str, dollars: bool = False) -> str:
+    """``text`` as a figure draws it: :func:`drawable`, then :data:`_FIGURE_ESCAPES`; ``dollars``: ``$`` as ``\\$``."""
+    text = drawable(text).translate(_FIGURE_ESCAPES)
+    return text.replace("$", r"\$") if dollars else text
+
+
 class _Drawable(Formatter):
-    """An axis's formatter whose labels are :func:`drawable`: ``inner``'s, each surrogate escaped."""
+    """An axis's formatter whose labels are drawn as written: ``inner``'s, :func:`figure_text` (``$`` as ``\\$``)."""
 
     def __init__(self, inner: Formatter):
         self.inner = inner
 
     def __call__(self, x, pos=None):
-        return drawable(self.inner(x, pos))
+        return figure_text(self.inner(x, pos), True)
 
     def format_ticks(self, values):
-        return [drawable(t) for t in self.inner.format_ticks(values)]
+        return [figure_text(t, True) for t in self.inner.format_ticks(values)]
 
     def get_offset(self):
-        return drawable(self.inner.get_offset())
+        return figure_text(self.inner.get_offset(), True)
 
     def set_locs(self, locs):
         self.inner.set_locs(locs)
@@ -550,37 +550,38 @@ class _Drawable(Formatter):
         self.inner.set_axis(axis)
 
 
-# the formatters whose labels can be any text (a name given by set_xticks(ticks, labels), a function's, a category):
-# a number's formatters make digits alone
+# the formatters whose labels can be any text (set_xticks(ticks, labels)'s, a function's, a category): not a number's
 _TEXT_FORMATTERS = (ticker.FixedFormatter, ticker.FuncFormatter, ticker.StrMethodFormatter, ticker.FormatStrFormatter,
                     StrCategoryFormatter)
 
 
 def _drawable_texts(fig: MplFigure) -> None:
-    """Every text of ``fig`` (titles, labels, tick labels, legends, notes) :func:`drawable`: a run folder's
-    name of bytes not UTF-8 in a label is drawn with its bytes escaped, where matplotlib would raise."""
-    for ax in fig.axes:  # (tick labels, set_xticks(ticks, labels) or a formatter's: made again as the figure draws)
-        for axis in (ax.xaxis, ax.yaxis):  # (each formatter that can give any text wrapped: the labels not made here,
-            for minor in (False, True):    # which cost 12 - 20 ms a log-log figure)
-                formatter = axis.get_minor_formatter() if minor else axis.get_major_formatter()
-                if isinstance(formatter, _TEXT_FORMATTERS):
-                    (axis.set_minor_formatter if minor else axis.set_major_formatter)(_Drawable(formatter))
+    """Every text of ``fig`` (titles, labels, tick labels, legends, notes) drawn as written (:func:`figure_text`): a
+    folder's name of bytes not UTF-8 with its bytes escaped (matplotlib raised), ``m$x^2$`` not as a formula."""
+    ticks = set()  # (tick labels: drawn as their formatters make them as the figure draws, tlm's 10^{3} mathtext)
+    for axis in fig.findobj(Axis):  # (an axes', a secondary axis's; each formatter that can give any text wrapped:
+        for minor in (False, True):  # the labels not made here, which cost 12 - 20 ms a log-log figure)
+            formatter = axis.get_minor_formatter() if minor else axis.get_major_formatter()
+            if isinstance(formatter, _TEXT_FORMATTERS):
+                (axis.set_minor_formatter if minor else axis.set_major_formatter)(_Drawable(formatter))
+        ticks.update(id(t) for k in (*axis.majorTicks, *axis.minorTicks) for t in (k.label1, k.label2))
+        ticks.add(id(axis.offsetText))
     for text in fig.findobj(Text):
         got = text.get_text()
-        if isinstance(got, str) and got != (shown := drawable(got)):
+        if isinstance(got, str) and got != (shown := figure_text(got)):
             text.set_text(shown)
+        text.set_parse_math(id(text) in ticks)  # (a name's ``$`` drawn as written, not parsed)
 
 
 def write_png(fig: MplFigure, path: Path) -> None:
-    """Write ``fig`` as the PNG ``path`` at the resolution set (:func:`figure_output`, by default
-    :data:`DPI`), laid out once and drawn once, and beside it each other format set (``path``
-    with the suffix ``.pdf``, ``.svg``), drawn once each from the same layout.
+    """Write ``fig`` as the PNG ``path`` at the resolution set (:func:`figure_output`, by default :data:`DPI`), laid
+    out once and drawn once, and beside it each other format set (``path`` with the suffix ``.pdf``, ``.svg``),
+    drawn once each from the same layout.
 
-    The PNG holds the same pixels as ``fig.savefig(path, dpi=dpi)``: the figure's Agg canvas at
-    ``dpi`` is the one ``savefig`` would draw on, and its layout engine runs on it as ``savefig``
-    runs it (in a first draw that outputs nothing, which this skips). The engine is then taken
-    off the figure, as ``savefig`` takes it off for its second draw, so the PDF and SVG are
-    drawn with the layout the PNG has (an image in them keeps the PNG's resolution)."""
+    The PNG holds the same pixels as ``fig.savefig(path, dpi=dpi)``: the figure's Agg canvas at ``dpi`` is the one
+    ``savefig`` would draw on, and its layout engine runs on it as ``savefig`` runs it (in a first draw that outputs
+    nothing, which this skips). The engine is then taken off the figure, as ``savefig`` takes it off for its second
+    draw, so the PDF and SVG are drawn with the layout the PNG has (an image in them keeps the PNG's resolution)."""
     out = current_output()
     fig.set_dpi(out.dpi)
     canvas = FigureCanvasAgg(fig)
@@ -684,10 +685,9 @@ class FigureName:
 
 
 def save(fig: MplFigure, out: Path, name: str | FigureName, title: str, caption: str = "") -> Figure:
-    """Write ``fig`` into ``out`` (PNG, and the other formats set: :func:`write_png`) and return its
-    record. Its file name is :func:`figure_name` of ``name`` (a file name, or its parts and key); a
-    plain file name's key is ``name``, ``title`` and ``caption``: two figures that differ in them are
-    two files."""
+    """Write ``fig`` into ``out`` (PNG, and the other formats set: :func:`write_png`) and return its record. Its file
+    name is :func:`figure_name` of ``name`` (a file name, or its parts and key); a plain file name's key is ``name``,
+    ``title`` and ``caption``: two figures that differ in them are two files."""
     if isinstance(name, FigureName):
         parts, key = tuple(name.parts), name.key
     else:

@@ -257,7 +257,7 @@ def fifo_caption(fifo: dict | None) -> str:
 def _title(ax, title: str, run: Run) -> None:
     """The axes' title: ``title``, and under it a sweep point's factor values (which point)."""
     if run.factors:
-        ax.set_title(f"{title}\n{textwrap.fill(run.factors_text, 90)}", fontsize=10)
+        ax.set_title(f"{title}\n{textwrap.fill(run.factors_text, 90, expand_tabs=False)}", fontsize=10)
     else:
         ax.set_title(title)
 

@@ -196,7 +196,7 @@ def _draw(rows: list[Row], title: str, out: Path, name: FigureName, caption: str
             if panel.image is not None:
                 ax.imshow(panel.image, interpolation="nearest")
                 if panel.remark:
-                    ax.set_xlabel(textwrap.fill(panel.remark, WRAP), fontsize=6.5)
+                    ax.set_xlabel(textwrap.fill(panel.remark, WRAP, expand_tabs=False), fontsize=6.5)
             else:
                 ax.set_xlim(0, 1)
                 ax.set_ylim(0, 1)
@@ -204,10 +204,10 @@ def _draw(rows: list[Row], title: str, out: Path, name: FigureName, caption: str
                 for spine in ax.spines.values():
                     spine.set_visible(True)
                     spine.set_linestyle(":")
-                ax.text(0.5, 0.5, textwrap.fill(panel.remark, 26), ha="center", va="center", fontsize=7,
-                        transform=ax.transAxes, wrap=True)
+                ax.text(0.5, 0.5, textwrap.fill(panel.remark, 26, expand_tabs=False), ha="center", va="center",
+                        fontsize=7, transform=ax.transAxes, wrap=True)
             if c == 0:
-                ax.set_ylabel(textwrap.fill(f"{row.label} ({row.resolution})", 28), fontsize=8)
+                ax.set_ylabel(textwrap.fill(f"{row.label} ({row.resolution})", 28, expand_tabs=False), fontsize=8)
     fig.suptitle(title, fontsize=11)
     return save(fig, out, name, title, caption)
 

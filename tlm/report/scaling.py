@@ -200,7 +200,7 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
     rows = 0
     for ax in axes:
         handles, labels = ax.get_legend_handles_labels()
-        wrapped = [textwrap.fill(t, LEGEND_CHARS) if len(t) > LEGEND_CHARS else t for t in labels]
+        wrapped = [textwrap.fill(t, LEGEND_CHARS, expand_tabs=False) if len(t) > LEGEND_CHARS else t for t in labels]
         rows = max(rows, sum(t.count("\n") + 1 for t in wrapped))
         ax.legend(handles, wrapped, fontsize=7, ncol=1, loc="upper center", bbox_to_anchor=(0.5, -0.14),
                   borderaxespad=0.0)

@@ -151,7 +151,7 @@ def legend_under(fig, ax, width: float, height: float) -> None:
     (many identical combinations), squeezes it (matplotlib's constrained layout gives up with
     a warning when the decorations leave the axes no room)."""
     handles, labels = ax.get_legend_handles_labels()
-    wrapped = [textwrap.fill(label, max(20, int(width * LEGEND_CHARS_PER_INCH))) for label in labels]
+    wrapped = [textwrap.fill(label, max(20, int(width * LEGEND_CHARS_PER_INCH)), expand_tabs=False) for label in labels]
     lines = sum(w.count("\n") + 1 for w in wrapped)
     fig.set_size_inches(width, height + LEGEND_PAD_IN + lines * LEGEND_LINE_IN + len(wrapped) * LEGEND_GAP_IN)
     fig.legend(handles, wrapped, loc="outside lower center", fontsize=LEGEND_FONT)
