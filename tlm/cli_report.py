@@ -11,7 +11,7 @@ import argparse
 import sys
 import time
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, suppress
 from pathlib import Path
 
 from tlm import api, claims, storage
@@ -21,11 +21,13 @@ from tlm.errors import EnvironmentFailure, chain, interrupted_by, path_shown, qu
 
 
 def say_err(line: str) -> None:
-    """A progress line on stderr, above any progress bar."""
+    """A progress line on stderr, above any progress bar; none where stderr cannot be written (its reader gone,
+    ``2>/dev/full``, ``2</dev/null``: the command goes on, as :func:`tlm.cli_streams.guard_streams` keeps it)."""
     from tqdm import tqdm
 
-    tqdm.write(f"tlm: {line}", file=sys.stderr)
-    sys.stderr.flush()
+    with suppress(OSError):
+        tqdm.write(f"tlm: {line}", file=sys.stderr)
+        sys.stderr.flush()
 
 
 def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> None:

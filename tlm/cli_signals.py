@@ -192,7 +192,6 @@ from pathlib import Path
 
 from tlm import progress
 from tlm.errors import (
-    environment_problem,
     escaped_line,
     forget_landed,
     signal_landed,
@@ -204,8 +203,9 @@ _EXIT: list[int] = []  # the exit status of the process's own command, once it e
 
 
 def _line(text: str) -> None:
-    """A line on stderr (the command's last); none where its reader went away."""
-    with suppress(BrokenPipeError):  # (a byte of a path not UTF-8 as \xff, as stdout shows it: not \udcff)
+    """A line on stderr (the command's last); none where its reader went away or it cannot be written
+    (``2>/dev/full``, ``2</dev/null``: the exit status is the command's all the same)."""
+    with suppress(OSError):  # (a byte of a path not UTF-8 as \xff, as stdout shows it: not \udcff)
         sys.stderr.write(f"{surrogates_escaped(text)}\n")
 
 
@@ -271,7 +271,9 @@ def signals():
     begins stays ignored (``nohup`` ignores SIGHUP, a shell's background job ``&`` SIGINT: the
     command is meant to outlive them). A reader of stdout or stderr that goes away stops nothing
     (:func:`tlm.cli_streams.guard_streams`, in the main thread): the command runs to its end, and where it was
-    stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`tlm.cli_failed.exit_status`)."""
+    stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`tlm.cli_failed.exit_status`);
+    so is a stdout that could not be written (``> /dev/full``: ``cannot write stdout: ...``, exit status 1,
+    :func:`tlm.cli_streams.stdout_failure`). A stderr that cannot be written stops nothing either."""
     early = any(signal.getsignal(s) is _early_signal for s in TAKEN)
     if not early:  # (else the signal the early handler noted, if one came, is this command's)
         _SIGNALS.clear()
@@ -291,7 +293,8 @@ def signals():
             raise KeyboardInterrupt
         yield
         out = guarded.get("stdout")
-        if out is not None and out.error is not None:  # (its reader went away: the command ran on, to its end)
+        if out is not None and out.error is not None:  # (its reader went away, or it could not be written: the
+            # command ran on, to its end)
             raise out.error
     except BaseException as e:
         from tlm.errors import settle_landed
@@ -564,7 +567,8 @@ def _others_once() -> bool:
 def _flushed(status: int) -> int:
     """``status`` once stdout and stderr are flushed (what the interpreter's exit would do,
     left out by :func:`_end`): 141 where the reader of stdout went away (as for ``tlm params |
-    head -1``, :func:`tlm.cli_failed.exit_status`), 1 with its line where it could not be written (a full disk)."""
+    head -1``, :func:`tlm.cli_failed.exit_status`), 1 with its line where it could not be written (a full disk:
+    ``tlm: error: cannot write stdout: no space left on device``, :func:`tlm.cli_streams.stdout_failure`)."""
     if cli_streams._GONE.get("stdout") and status == 0:  # (its reader went away during the command: guard_streams)
         status = 128 + signal.SIGPIPE
     streams = [sys.stdout, sys.__stdout__, sys.stderr, sys.__stderr__]
@@ -578,8 +582,7 @@ def _flushed(status: int) -> int:
                 cli_streams._to_devnull(stream.fileno())
         except OSError as e:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
-                what = escaped(environment_problem(e) or "") or one_line(e)
-                _say(f"tlm: error: the output could not be written: {what}")
+                _say(f"tlm: error: {escaped(str(cli_streams.stdout_failure(e)))}")
                 status = 1
         except Exception:  # (a closed stream: nothing to flush)
             pass

@@ -3,9 +3,12 @@
 A reader of stdout that goes away (``tlm params | head -1``) ends a command that only prints at
 once, quietly (exit status 141, as if killed by SIGPIPE); one that writes a destination (``tlm run
 ... | head``: :func:`writes_files`, a claim of its folder) runs to its end, what it prints from
-then on dropped, and exits with 141 once its folder is whole. A reader of stderr that goes away
-stops nothing: the command's warnings and lines are lost, to no one (:class:`_Guarded`, made by
-:func:`guard_streams` as a command begins). A line the stream cannot encode (a path of bytes not UTF-8,
+then on dropped, and exits with 141 once its folder is whole. A stdout that cannot be written (a full disk,
+``> /dev/full``) is the same but for its end: ``tlm: error: cannot write stdout: ...``, exit status 1
+(:func:`stdout_failure`). A reader of stderr that goes away, or a stderr that cannot be written
+(``2>/dev/full``, ``2</dev/null``), stops nothing: the command's warnings and lines are lost, to no one, its
+work and exit status its own (:class:`_Guarded`, made by :func:`guard_streams` as a command begins). A line
+the stream cannot encode (a path of bytes not UTF-8,
 ``run_\\udcff`` as Python reads it, printed to a stdout that refuses surrogates: a UTF-8 locale other than
 ``C.UTF-8``, ``PYTHONIOENCODING=utf-8``) is written with the byte escaped, ``run_\\xff`` (:func:`_writable`), where
 it raised UnicodeEncodeError and the command ended as an internal error, its files written; stderr writes such a
@@ -61,18 +64,52 @@ class _Guarded:
     (:data:`_GONE`) and the first BrokenPipeError kept (``error``): a reader of stdout gone ends
     the command with exit status 141 once its work is done, as if SIGPIPE had ended it
     (:func:`tlm.cli_signals.signals`, :func:`tlm.cli_signals._flushed`); one of stderr changes
-    nothing (its warnings and lines are lost, to no one). Text the stream cannot encode is written escaped
+    nothing (its warnings and lines are lost, to no one). Any other error writing the stream is
+    :meth:`_failed`'s: stderr's stops nothing, stdout's ends the command as its reader gone does, but
+    with exit status 1 and its line (:func:`stdout_failure`). Text the stream cannot encode is written escaped
     (:func:`_writable`). Anything else is the stream's."""
 
     def __init__(self, stream, name: str) -> None:
         self._stream = stream
         self._name = name
-        self.error: BrokenPipeError | None = None
+        self.error: OSError | None = None  # (stdout's first: a BrokenPipeError, or a failure, stdout_failure)
+
+    def _failed(self, e: OSError) -> None:
+        """A write (or flush) of the stream that raised ``e``. A reader gone (a BrokenPipeError): :meth:`_gone`.
+        Any other error writing stderr (a full disk, ``2>/dev/full``; a file descriptor open for reading,
+        ``2</dev/null``) stops nothing either: what it writes from then on is dropped (stderr is the human's
+        channel: losing it changes neither the work nor the exit status); one that says a stream set non-blocking
+        is full this moment (a BlockingIOError) drops this text alone. One writing stdout is a failure to write
+        the command's output (:func:`stdout_failure`, kept in ``error``), stdout dropped from then on. Either
+        of stdout's ends a command that only prints (its stdout is its output) at once, raised here, and one that
+        writes a destination (:func:`_writing`: its files are its output, its stdout their summary) once its
+        work is done, raised by :func:`tlm.cli_signals.signals`."""
+        if isinstance(e, BrokenPipeError):
+            self._gone(e)
+            failed: OSError = e
+        elif self._name == "stderr":
+            if not isinstance(e, BlockingIOError):
+                self._dropped()
+            return
+        else:
+            failed = stdout_failure(e)
+            if self.error is None:
+                self.error = failed
+            self._dropped()
+        if self._name == "stdout" and not _writing():
+            if failed is e:
+                raise e
+            raise failed from e
 
     def _gone(self, e: BrokenPipeError) -> None:
         _GONE[self._name] = True
         if self.error is None:
             self.error = e
+        self._dropped()
+
+    def _dropped(self) -> None:
+        """What the stream writes from now on dropped: its file descriptor led to ``/dev/null``, what was
+        buffered flushed there."""
         with suppress(Exception):
             _to_devnull(self._stream.fileno())
         with suppress(Exception):  # (what was buffered goes to /dev/null now)
@@ -88,10 +125,8 @@ class _Guarded:
             except UnicodeEncodeError:  # (encoded whole before any of it is written: nothing written twice)
                 self._stream.write(_writable(text, getattr(self._stream, "encoding", None)))
                 return len(text)
-        except BrokenPipeError as e:
-            self._gone(e)
-            if self._name == "stdout" and not _writing():
-                raise
+        except OSError as e:
+            self._failed(e)
             return len(text)
 
     def writelines(self, lines) -> None:
@@ -101,16 +136,32 @@ class _Guarded:
     def flush(self) -> None:
         try:
             self._stream.flush()
-        except BrokenPipeError as e:
-            self._gone(e)
-            if self._name == "stdout" and not _writing():
-                raise
+        except OSError as e:
+            self._failed(e)
 
     def __getattr__(self, name):
         return getattr(self._stream, name)
 
     def __iter__(self):
         return iter(self._stream)
+
+
+def stdout_failure(e: OSError) -> OSError:
+    """What ``e``, an error writing stdout (not its reader gone), says: ``cannot write stdout: no space left on
+    device`` (``> /dev/full``; ``bad file descriptor``: ``1</dev/null``), a :class:`tlm.errors.EnvironmentFailure`
+    (the command's line ``tlm: error: ...``, exit status 1), not a bare ``no space left on device`` that named no
+    file. ``e`` itself where it says so already. (:mod:`tlm.errors` as :mod:`tlm.cli_signals` imported it, after this
+    module: this one imports none of tlm's, see the module's notes; where none is, an OSError of the same words.)"""
+    errors = sys.modules.get("tlm.errors")
+    if str(e).startswith(STDOUT_FAILED):
+        return e
+    what = errors is not None and errors.environment_problem(e, filename=False)
+    what = what or (e.strerror or str(e) or type(e).__name__).lower()
+    return errors.EnvironmentFailure(f"{STDOUT_FAILED}: {what}") if errors is not None else OSError(
+        e.errno, f"{STDOUT_FAILED}: {what}")
+
+
+STDOUT_FAILED = "cannot write stdout"
 
 
 _WRITES = False  # the command writes files (:func:`writes_files`, set by tlm.cli for its command)

@@ -161,10 +161,15 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
             entries = list(listing)
     except FileNotFoundError:
         return
-    if not any(e.name in (marker, *also) and e.is_file() for e in entries) and any(
-            not any(_claiming(e.name, m) for m in (marker, *also)) for e in entries):
-        raise InputError(f"{quoted(out)} exists and is not an earlier tlm output (no {marker}); "
-                         "refusing to replace it", key=key)
+    held = [e.name for e in entries if not any(_claiming(e.name, m) for m in (marker, *also))]
+    if not any(e.name in (marker, *also) and e.is_file() for e in entries) and held:
+        # (what to do, said: a log written into the folder, `> OUT/tlm.log` as Snakemake's log: puts there, is
+        # the usual one; a folder tlm wrote carries what is added to it into its next output, not a report's)
+        names = ", ".join(quoted(n) for n in sorted(held)[:2]) + (f" and {len(held) - 2} more" if len(held) > 2 else "")
+        kept = "" if marker == "report.html" else ", and a folder tlm wrote keeps files added to it"
+        raise InputError(f"{quoted(out)} exists and is not an earlier tlm output (no {marker}; it holds {names}: "
+                         f"write a log beside it, {quoted(f'{os.fspath(out)}.log')}, not in it; a new or an empty "
+                         f"folder is taken{kept}); refusing to replace it", key=key)
 
 
 # the markers of the outputs written into their folder in place, never replacing it (a sweep's ``sweep.yaml``:
