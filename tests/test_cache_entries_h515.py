@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import tlm
+from tests.test_cache_admin import DAY, SMALL  # (a tiny frame to cache; a day in seconds)
 from tlm import cache_admin as ca
 from tlm.cli import main
 from tlm.config import config_from_dict
@@ -23,10 +24,6 @@ from tlm.experiments.frames import cached_render
 from tlm.experiments.reference_cache import save_reference
 from tlm.fingerprint import code_fingerprint
 from tlm.oracle.mitsuba import save_ground_truth
-
-SMALL = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": {"light_samples": 1, "spp": 1},
-         "arch": {"frames": 1, "trace": False}}
-DAY = 86400.0
 
 
 @pytest.fixture(autouse=True)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import copy
 import hashlib
-import json
 import threading
 from pathlib import Path
 
@@ -22,25 +21,13 @@ import matplotlib
 import matplotlib.style
 import numpy as np
 import pytest
-import yaml
 
 import tlm
 import tlm.report.common as common
+from tests.test_report_speed_h128 import sweep_folder  # (a 3-point sweep's rows: the figures' input)
 from tlm.experiments.reference import Made
 from tlm.experiments.reference_cache import ReferenceSettings
 from tlm.report import build_report
-
-
-def sweep_folder(folder: Path) -> Path:
-    """A 3-point sweep over the packet size, its rows alone (what the sweep figures read)."""
-    folder.mkdir(parents=True)
-    (folder / "sweep.yaml").write_text(yaml.safe_dump({"sweep": "s3.yaml", "description": "16x16 Cornell RCast",
-                                                       "grid": {"arch.packet_size": [1, 16, 256]}}))
-    rows = [{"point": i, "hash": f"h{i:02d}", "status": "ok", "arch.packet_size": p, "scene": "cornell",
-             "mode": "rcast", "fps": 100.0 + p, "cycles.throughput": 6e8 / (100.0 + p)}
-            for i, p in enumerate((1, 16, 256))]
-    (folder / "sweep.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
-    return folder
 
 
 def figures(folder: Path) -> dict[str, str]:
