@@ -299,6 +299,10 @@ def signals():
     except BaseException as e:
         from tlm.errors import settle_landed
 
+        out = guarded.get("stdout")
+        if isinstance(e, SystemExit) and e.code in (0, None) and out is not None and out.error is not None:
+            # (--help, --version: argparse's _print_message swallows the OSError of its write, then exits 0)
+            raise out.error from None
         settle_landed(e)  # (an error a C extension made of a signal's interrupt: known for it after the block,
         raise  # whose frames the signals landed in, with every caller's locals, are let go as it ends)
     finally:
