@@ -11,6 +11,7 @@ from pathlib import Path
 
 from tlm.errors import EnvironmentFailure
 from tlm.storage_errors import write_problem
+from tlm.storage_live import sibling_stem
 
 _STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
 
@@ -33,7 +34,8 @@ def write_files(files: Sequence[tuple[Path, str | bytes]], write_file: Callable[
     try:
         for path, data in files:
             tag = f"{process_tag()}-{next(_STAGED)}"
-            new, old = path.with_name(f".{path.name}.new{tag}"), path.with_name(f".{path.name}.old{tag}")
+            stem = sibling_stem(path, strict=False)  # (a long name's: within NAME_MAX)
+            new, old = path.with_name(f".{stem}.new{tag}"), path.with_name(f".{stem}.old{tag}")
             staged.append((path, new, old))  # (before it exists: a signal after its rename still removes it)
             try:
                 write_file(new, data)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from tlm import storage_lock
 from tlm.errors import InputError, quoted
-from tlm.storage_live import _hold, _release, _writer
+from tlm.storage_live import _hold, _release, _writer, sibling_stem
 
 
 def mounted(out: Path) -> str:
@@ -52,7 +52,7 @@ def swap_tries(tmp: Path, out: Path, writer: str, held: list[str]) -> None:
             raise
         old = None
         if out.exists():  # (a file system without the exchange, or another OS: two renames)
-            old = out.parent / f".{out.name}.old-{writer}-{n}"
+            old = out.parent / f".{sibling_stem(out, strict=False)}.old-{writer}-{n}"  # (a long name's: NAME_MAX)
             _hold(old.name)
             held.append(old.name)
             try:
