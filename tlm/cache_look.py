@@ -8,6 +8,7 @@ set its access time, which only its owner may set back) is not made, and leaves 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -74,32 +75,39 @@ def _sidecar(path: Path, whole: bool):
     return None
 
 
-def peek(path: Path, read=lambda fh: fh.read(), own: bool = False):
-    """``read(fh)`` of the file ``path`` (its bytes), its access time left as it was (``O_NOATIME``, else set back);
-    None where it is no regular file (a FIFO is not waited on), or it cannot be read (whatever numpy or json say).
-    ``own``: :data:`UNREAD` where ``O_NOATIME`` is refused (another user's file, whose access time this process
-    cannot set back either: a read would mark it used, which ``tlm cache prune`` would take for a use)."""
+def unmarked(path: Path, read=lambda fh: fh.read(), own: bool = False):
+    """``read(fh)`` of the file ``path`` (its bytes), its access time left as it was: opened ``O_NOATIME`` where this
+    process may (the file's owner), else set back after the read where it changed (its modification time as it is
+    then: a reader's mark of use meanwhile kept). An OSError where it cannot be read or is no regular file (a FIFO is
+    not waited on). ``own``: :data:`UNREAD` where ``O_NOATIME`` is refused (another user's file, whose access time
+    this process cannot set back either). A look at a cache entry that is no use of it, which ``tlm cache prune``
+    would otherwise take for one (the later of a file's access and modification times): :func:`peek`,
+    :func:`tlm.experiments.frame_keys.looked`."""
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
     try:
-        try:
-            fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
-        except PermissionError:  # (O_NOATIME: the owner's alone)
-            if own:
-                return UNREAD
-            fd = os.open(path, flags)
-    except OSError:
-        return None
+        fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
+    except PermissionError:  # (O_NOATIME: the owner's alone)
+        if own:
+            return UNREAD
+        fd = os.open(path, flags)
     try:
         before = os.fstat(fd)
         if not stat.S_ISREG(before.st_mode):
-            return None
+            raise OSError(errno.EINVAL, "not a regular file", os.fspath(path))
         with open(fd, "rb", closefd=False) as fh:
             got = read(fh)
         if (after := os.fstat(fd)).st_atime_ns != before.st_atime_ns and os.utime in os.supports_fd:
             with contextlib.suppress(OSError):  # (not the owner's: its access time is the system's)
-                os.utime(fd, ns=(before.st_atime_ns, after.st_mtime_ns))  # (a reader's mark of use meanwhile kept)
+                os.utime(fd, ns=(before.st_atime_ns, after.st_mtime_ns))
         return got
-    except Exception:
-        return None
     finally:
         os.close(fd)
+
+
+def peek(path: Path, read=lambda fh: fh.read(), own: bool = False):
+    """:func:`unmarked`'s ``read(fh)`` of ``path``, or None where it cannot be read or is no regular file
+    (whatever numpy or json say too)."""
+    try:
+        return unmarked(path, read, own)
+    except Exception:
+        return None

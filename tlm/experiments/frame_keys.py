@@ -17,9 +17,9 @@ import os
 import re
 import threading
 from collections import OrderedDict
-from contextlib import suppress
 from pathlib import Path
 
+from tlm.cache_look import unmarked
 from tlm.caches import cache_root, cache_write_failed, cache_written, note_use, remove_entry
 from tlm.config import decoded, noting_reads, read_bytes, text_digest
 from tlm.errors import InputError
@@ -223,30 +223,16 @@ def keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = No
 
 def looked(path: Path, digest: bool = False) -> bytes | dict:
     """The bytes of ``path`` (with ``digest``: their size and sha256, as :func:`~tlm.caches.file_digest` gives them,
-    read a MiB at a time), read without changing its access time: opened ``O_NOATIME`` where this process may (the
-    file's owner), else its access time set back after the read where it changed (its modification time as it is
-    then: a use another process marks meanwhile is kept). OSError where it cannot be read. A look at a cache entry
-    that is not a use of it (``tlm sweep --dry-run``: :func:`tlm.experiments.frames.is_cached`, :func:`_kept_key`),
-    which ``tlm cache prune`` would otherwise take for one (the later of a file's access and modification times)."""
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)  # (a FIFO put there: no wait)
-    try:
-        fd = os.open(path, flags | getattr(os, "O_NOATIME", 0))
-    except PermissionError:  # (O_NOATIME: the owner's alone)
-        fd = os.open(path, flags)
-    try:
-        before = os.fstat(fd)
-        h, size, chunks = hashlib.sha256(), 0, []
-        with open(fd, "rb", closefd=False) as fh:
-            while chunk := fh.read(1 << 20):
-                if digest:
-                    h.update(chunk)
-                    size += len(chunk)
-                else:
-                    chunks.append(chunk)
-        after = os.fstat(fd)
-        if after.st_atime_ns != before.st_atime_ns and os.utime in os.supports_fd:
-            with suppress(OSError):  # (not the owner's: its access time is the system's)
-                os.utime(fd, ns=(before.st_atime_ns, after.st_mtime_ns))
-    finally:
-        os.close(fd)
-    return {"size": size, "sha256": h.hexdigest()} if digest else b"".join(chunks)
+    read a MiB at a time), read without changing its access time (:func:`tlm.cache_look.unmarked`); OSError where it
+    cannot be read. A look at a cache entry that is not a use of it (``tlm sweep --dry-run``:
+    :func:`tlm.experiments.frames.is_cached`, :func:`_kept_key`)."""
+    return unmarked(path, _digest if digest else (lambda fh: fh.read()))
+
+
+def _digest(fh) -> dict:
+    """``{"size", "sha256"}`` of what the open file ``fh`` holds, read a MiB at a time."""
+    h, size = hashlib.sha256(), 0
+    while chunk := fh.read(1 << 20):
+        h.update(chunk)
+        size += len(chunk)
+    return {"size": size, "sha256": h.hexdigest()}
