@@ -57,6 +57,7 @@ from tlm.cache_look import HEX as _HEX
 from tlm.cache_look import PARTIAL as _PARTIAL  # (references/: the rounds saved of a reference, a file)
 from tlm.cache_look import describe as describe  # (what an entry is: out of here, h517)
 from tlm.cache_look import peek as peek  # (a look that is no use)
+from tlm.cache_look import tell_apart as tell_apart  # (what tells frames apart: h527)
 from tlm.caches import cache_home, remove_entry
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.fingerprint import code_fingerprint
@@ -97,6 +98,10 @@ class Entry:
     kind: str = ""  # what it is: frame, mesh, reference, partial, leftover... (:func:`describe`, as all below)
     about: dict = field(default_factory=dict, compare=False)  # what its sidecar says: scene, resolution, mode...
     stale: bool | None = None  # a frame of other code than this tlm's, never read by it; None: not judged (no frame)
+    # a frame's settings its sidecar records (tlm.cache_look.frame_settings: described whole), and those it differs in
+    # from frames of the same scene, resolution and mode (tlm.cache_look.tell_apart: tlm cache list's; else none)
+    settings: dict = field(default_factory=dict, repr=False, compare=False)
+    differs: dict = field(default_factory=dict, compare=False)
     # (each file's :func:`_fingerprint` as the scan saw it: :func:`remove` removes a file only while it is
     # still that one)
     seen: dict[Path, dict[str, tuple[int, ...]]] = field(default_factory=dict, repr=False, compare=False)
@@ -105,17 +110,20 @@ class Entry:
         return f"{self.cache}/{self.name}"
 
     def what(self) -> str:
-        """What it is, in words: ``frame cornell 320x240 pmap``, ``reference 64x64 16000 photons 32 rounds``."""
+        """What it is, in words: ``frame cornell 320x240 pmap``, ``reference 64x64 16000 photons 32 rounds``; and
+        what tells a frame from others of the same (:attr:`differs`): ``frame cornell 320x240 pmap [filter=knn]``."""
         a = self.about
         words = [self.kind, a.get("scene"), "x".join(map(str, a["resolution"])) if "resolution" in a else None,
-                 a.get("mode"), *(f"{a[k]} {k}" for k in ("photons", "rounds", "spp") if k in a)]
+                 a.get("mode"), *(f"{a[k]} {k}" for k in ("photons", "rounds", "spp") if k in a),
+                 f"[{' '.join(f'{k}={v}' for k, v in self.differs.items())}]" if self.differs else None]
         return " ".join(str(w) for w in words if w) or "-"
 
     def row(self) -> dict:
         """As ``--json`` lists it (a prune's ``removed``, ``tlm cache list --json``'s ``entries``, ``tlm cache
         --json``'s ``partials``): what it is too, and a partial with its ``partial_rounds`` and ``partial`` words."""
         row = {"entry": self.shown(), "bytes": self.size, "last_use": stamp(self.last_use), "kind": self.kind,
-               **self.about, "what": self.what(), "stale": self.stale}
+               **self.about, "what": self.what(), "stale": self.stale, **({"differs": self.differs} if self.differs
+                                                                          else {})}
         return {**row, "partial_rounds": self.rounds, "partial": self.partial} if self.partial else row
 
 

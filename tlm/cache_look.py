@@ -1,6 +1,8 @@
 """A look at a cache entry that is no use of it (:func:`peek`: its access time left as it was), and what the entry is
 (:func:`describe`: its kind, what its sidecar says, and whether a frame is **stale**, written by other code than this
-tlm's). Out of :mod:`tlm.cache_admin` (h517), which re-exports both: ``tlm cache``'s survey, listing and prune read
+tlm's), and what tells frames of one scene, resolution and mode apart (:func:`tell_apart`: the settings their
+sidecars record, :func:`frame_settings`, where they differ; h527). Out of :mod:`tlm.cache_admin` (h517), which
+re-exports the first two: ``tlm cache``'s survey, listing and prune read
 every frame's sidecar through them, so a look by a user who does not own the file (a shared cache: reading it would
 set its access time, which only its owner may set back) is not made, and leaves the entry's last use as it was.
 """
@@ -47,6 +49,8 @@ def describe(e, whole: bool = False) -> None:
         modes = [m[1] for r in reasons.values() if isinstance(r, str) and (m := re.match(r"mode '(\w+)'", r))]
         e.about = {"scene": scene.get("name"), "resolution": scene.get("resolution"),
                    "mode": got.get("mode") or ("pmap" if "fgather" in reasons else modes[0] if modes else None)}
+        if whole:
+            e.settings = frame_settings(got)
     elif whole and e.kind in ("reference", "ground truth"):
         meta = v if isinstance(v := _sidecar(e.files[0] / "meta.json", True), dict) else {}
         head = peek(e.files[0] / ("reference.npy" if e.kind == "reference" else "image.npy"), lambda f: f.read(512),
@@ -56,6 +60,75 @@ def describe(e, whole: bool = False) -> None:
                    **{k: meta.get(k) for k in (("photons", "rounds") if e.kind == "reference" else ("spp",))}}
     e.about = {k: v for k, v in e.about.items() if (isinstance(v, list) and len(v) == 2 and all(
         type(x) is int for x in v) if k == "resolution" else isinstance(v, (str, int)) and not isinstance(v, bool))}
+
+
+def frame_settings(side: dict) -> dict:
+    """What a frame's sidecar ``side`` records of its settings beside its scene, resolution and mode (which the key
+    holds with the rest, the seed among them, unrecorded): ``spp``; a photon-map frame's ``photons`` (emitted),
+    ``filter``, ``final_gather``, each radius given (``radius``, ``caustic_radius``, ``global_radius``: 4 digits) or
+    its photons where the density gives it, and its reference's ``reference_photons`` and ``k_nearest``; the scene's
+    ``source`` file and ``triangles`` (a scene file changed: a cheap sign of it; a digest of all the sidecar says of
+    the scene cost ``tlm cache list`` of 5,000 frames a tenth more time); ``code`` (its ``code_fingerprint``). Only
+    what is there, as text or a whole number (:func:`tell_apart`)."""
+    scene, primary, photons, pmap = (v if isinstance(v := side.get(k), dict) else {}
+                                     for k in ("scene", "primary", "photons", "pmap"))
+    got = {"spp": primary.get("spp"), "photons": photons.get("emitted"), "filter": photons.get("filter"),
+           "final_gather": photons.get("final_gather")}
+    for r in ("radius", "caustic_radius", "global_radius"):
+        rule, value = photons.get(f"{r}_rule"), photons.get(r)
+        if rule == "density":
+            got[f"{r}_photons"] = photons.get(f"{r}_photons")
+        elif rule is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
+            got[r] = f"{value:.4g}"
+    got.update(reference_photons=pmap.get("photons"), k_nearest=pmap.get("k_nearest"), source=scene.get("source"),
+               triangles=scene.get("triangles"), code=side.get("code_fingerprint"))
+    return {k: v for k, v in got.items() if type(v) in (str, int)}
+
+
+def tell_apart(entries) -> None:
+    """Set each frame's :attr:`~tlm.cache_admin.Entry.differs` among ``entries`` (described ``whole``): where frames
+    of one cache, scene, resolution and mode differ in a setting their sidecars record (:func:`frame_settings`),
+    each's value of those (where it records one); where two still read the same (a seed, a setting no sidecar
+    records), ``other``: the start of each's key (8 hex digits, more where needed), which holds every setting. A frame
+    alone of its kind: none. One pass over the entries and a set per setting: 5,000 frames in a few hundredths of a
+    second."""
+    groups: dict[tuple, list] = {}
+    for e in entries:
+        if e.kind == "frame":
+            a = e.about
+            what = (e.cache, a.get("scene"), tuple(a.get("resolution") or ()), a.get("mode"))
+            groups.setdefault(what, []).append(e)
+    for group in groups.values():
+        if len(group) < 2:
+            continue
+        for e in group:
+            e.differs = {}
+        for same in _alike(group, recorded=True):  # (a value recorded by some, not by others: said only where needed)
+            for alike in _alike(same, recorded=False):
+                n = next((n for n in range(8, 65) if len({e.name[:n] for e in alike}) == len(alike)), None)
+                for e in alike:
+                    e.differs["other"] = e.name[:n]
+        for e in group:  # (in the order of frame_settings, other last)
+            e.differs = {k: e.differs[k] for k in sorted(e.differs, key=lambda k: _ORDER.get(k, len(_ORDER)))}
+
+
+def _alike(group: list, recorded: bool) -> list[list]:
+    """The frames of ``group`` that still read the same once each's ``differs`` has the settings the group differs
+    in (those with two values or more; not ``recorded``: or recorded by some, not by others): those of two or more."""
+    names = sorted({k for e in group for k in e.settings}, key=lambda k: _ORDER.get(k, len(_ORDER)))
+    differ = [k for k in names if len({e.settings.get(k) for e in group if k in e.settings or not recorded}) > 1]
+    alike: dict[tuple, list] = {}
+    for e in group:
+        e.differs.update((k, e.settings[k]) for k in differ if k in e.settings)
+        alike.setdefault(tuple(e.differs.items()), []).append(e)
+    return [same for same in alike.values() if len(same) > 1]
+
+
+# (the order a frame's settings are said in: frame_settings')
+_ORDER = {k: i for i, k in enumerate(("spp", "photons", "filter", "final_gather", "radius", "radius_photons",
+                                      "caustic_radius", "caustic_radius_photons", "global_radius",
+                                      "global_radius_photons", "reference_photons", "k_nearest", "source", "triangles",
+                                      "code"))}
 
 
 def _sidecar(path: Path, whole: bool):

@@ -74,8 +74,10 @@ def add_cache_parser(sub) -> None:
     ls = cs.add_parser("list", help="one row per entry: what it is (a frame's scene, resolution and mode; a "
                        "reference's resolution, photons and rounds), size, last use, stale or not",
                        description="One row per entry: what it is (kind; a frame's scene, resolution and mode, from "
-                       "its sidecar; a reference's or ground truth's resolution, photons and rounds or spp, from its "
-                       "meta.json and image), its size, last use, and whether it is stale: " + _STALE + ". " + _LAST_USE
+                       "its sidecar, and where frames of the same differ, the settings their sidecars record that "
+                       "they differ in, [spp=2 filter=knn], else other= and the start of each's key; a reference's or "
+                       "ground truth's resolution, photons and rounds or spp, from its meta.json and image), its size, "
+                       "last use, and whether it is stale: " + _STALE + ". " + _LAST_USE
                        + ". Listing is no use: no last use changes.")
     ls.add_argument("--sort", choices=_SORTS, default="what", help="what: by cache, then what the entry is, newest "
                     "use first (default); use: least recently used first (as a prune takes them); size: largest "
@@ -263,6 +265,7 @@ def _list(names: list[str], as_json: bool, sort: str, stale: bool) -> int:
     """``tlm cache list``: a row per entry of the caches ``names`` (``stale``: the stale frames alone), sorted."""
     home = cache_home()
     caches = ca.survey(names, home, whole=True)
+    ca.tell_apart([e for c in caches for e in c.entries])  # (among every frame: the same words with --stale)
     entries = [e for c in caches for e in c.entries if e.stale or not stale]
     entries.sort(key=lambda e: -e.last_use)  # (then stably: newest use first within what is alike)
     if sort == "what":

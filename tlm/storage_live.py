@@ -11,12 +11,12 @@
   ``storage_live._LIVE_LOCK``, never a copy of it).
 * :func:`left_by_the_gone` — the entries of a folder that a process now gone left.
 * :func:`sibling_stem` — what those names carry of their destination's name: a long name's prefix and hash, so
-  that they stay within the file system's NAME_MAX (:func:`name_max`).
+  that they stay within the file system's NAME_MAX (:func:`name_max`); both defined in :mod:`tlm.storage_lock`
+  (whose probe of a file system names its folders so too), imported from here as before.
 """
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import os
 import re
@@ -24,8 +24,12 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from tlm.errors import InputError
+# (name_max, sibling_stem: in tlm.storage_lock since h527, whose folder probe names its folders with them too;
+# imported from here as before)
+from tlm.storage_lock import _SIBLING_ROOM as _SIBLING_ROOM
 from tlm.storage_lock import _host
+from tlm.storage_lock import name_max as name_max
+from tlm.storage_lock import sibling_stem as sibling_stem
 
 # The files of tlm.claims.sharing in a sweep's folder (its lock, and one per running sweep): here, below both
 # tlm.storage (which skips them) and tlm.claims (which writes them), so that neither imports the other
@@ -65,50 +69,6 @@ def process_tag() -> str:
     files and folders, claims), a sweep folder's holder record and a traceback file carry it: on a
     disk shared between machines a process id alone names no process."""
     return f"{_host()}-{os.getpid()}"
-
-
-# the most bytes a hidden sibling's name adds to ``.<stem>``: ``.old-h<host, 33>-<pid>-<n>-<m>``, a thread's ``-t<id>``
-_SIBLING_ROOM = 80
-
-
-def name_max(folder: Path) -> int:
-    """The most bytes a name may have in ``folder`` (its nearest folder that exists): ``PC_NAME_MAX``, 255 untold."""
-    for d in (folder, *folder.parents):
-        try:
-            return int(os.pathconf(d, "PC_NAME_MAX"))
-        except (FileNotFoundError, NotADirectoryError):
-            continue
-        except (OSError, ValueError):
-            break
-    return 255
-
-
-def sibling_stem(path: str | os.PathLike, strict: bool = True) -> str:
-    """What the siblings tlm makes beside ``path`` (``.<stem>.tmp-...``, ``.<stem>.tlm-running``,
-    ``<stem>.unsaved-...``) carry of its name: the name itself where the longest of them stays within
-    the file system's NAME_MAX (:func:`name_max`), else a prefix of it, ``~`` and 12 hex digits of the
-    name's sha256: unique in its folder, the same in every process, and matched by the patterns that find
-    them (:func:`tlm.storage.clean_stale`). ``strict``: a name past NAME_MAX itself is refused (an InputError: no
-    such file or folder can be); else returned as it is."""
-    path = Path(path)
-    name = path.name
-    size = len(os.fsencode(name))
-    if size + 1 + _SIBLING_ROOM <= 128 or name in ("", ".", ".."):  # (within every NAME_MAX but the oldest ones)
-        return name
-    limit = name_max(path.parent)
-    if size > limit:
-        if strict:
-            raise InputError(f"a name of {size} bytes, past the {limit} this file system allows: give a shorter one",
-                             source=str(path))
-        return name
-    keep = limit - 1 - _SIBLING_ROOM
-    if size <= keep:
-        return name
-    digest = hashlib.sha256(os.fsencode(name)).hexdigest()[:12]
-    prefix = name
-    while prefix and len(os.fsencode(prefix)) > max(keep - 13, 0):
-        prefix = prefix[:-1]
-    return f"{prefix}~{digest}"
 
 
 # (reentrant, as tlm.claims' lock: a write_atomic or atomic_folder block left open in a reference cycle is closed

@@ -11,6 +11,9 @@
 * :func:`exchanges_in` — whether a folder's file system does :func:`exchange` (asked once per file
   system and process, a yes again after :data:`TRUST_S`; a reader's lock asks only what is known, writing
   nothing): there a missing folder is no folder, not a writer between its two renames.
+* :func:`sibling_stem` — what the names tlm makes beside a destination carry of its name, within the file
+  system's NAME_MAX (:func:`name_max`): here, below :mod:`tlm.storage_live` (which imports both), since the
+  probe of :func:`exchanges_in` names its folders so too.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import ctypes
 import errno
 import fcntl
 import functools
+import hashlib
 import itertools
 import math
 import os
@@ -32,11 +36,59 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
+from tlm.errors import InputError
+
 
 def _host() -> str:
     """This machine's name as a temporary folder's names carry it (``h`` and its letters
     and digits): on a folder shared between machines, a process id alone names no process."""
     return "h" + (re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "local")
+
+
+# the most bytes a hidden sibling's name adds to ``.<stem>``: ``.old-h<host, 33>-<pid>-<n>-<m>``, a thread's ``-t<id>``
+# (a folder probe's, tlm.storage_lock.exchanges_in: ``.old-h<host, 33>-<pid>-<thread>-<n>-<0 or 1>``, within it too)
+_SIBLING_ROOM = 80
+
+
+def name_max(folder: Path) -> int:
+    """The most bytes a name may have in ``folder`` (its nearest folder that exists): ``PC_NAME_MAX``, 255 untold."""
+    for d in (folder, *folder.parents):
+        try:
+            return int(os.pathconf(d, "PC_NAME_MAX"))
+        except (FileNotFoundError, NotADirectoryError):
+            continue
+        except (OSError, ValueError):
+            break
+    return 255
+
+
+def sibling_stem(path: str | os.PathLike, strict: bool = True) -> str:
+    """What the siblings tlm makes beside ``path`` (``.<stem>.tmp-...``, ``.<stem>.tlm-running``,
+    ``<stem>.unsaved-...``) carry of its name: the name itself where the longest of them stays within
+    the file system's NAME_MAX (:func:`name_max`), else a prefix of it, ``~`` and 12 hex digits of the
+    name's sha256: unique in its folder, the same in every process, and matched by the patterns that find
+    them (:func:`tlm.storage.clean_stale`). ``strict``: a name past NAME_MAX itself is refused (an InputError: no
+    such file or folder can be); else returned as it is."""
+    path = Path(path)
+    name = path.name
+    size = len(os.fsencode(name))
+    if size + 1 + _SIBLING_ROOM <= 128 or name in ("", ".", ".."):  # (within every NAME_MAX but the oldest ones)
+        return name
+    limit = name_max(path.parent)
+    if size > limit:
+        if strict:
+            raise InputError(f"a name of {size} bytes, past the {limit} this file system allows: give a shorter one",
+                             source=str(path))
+        return name
+    keep = limit - 1 - _SIBLING_ROOM
+    if size <= keep:
+        return name
+    digest = hashlib.sha256(os.fsencode(name)).hexdigest()[:12]
+    prefix = name
+    while prefix and len(os.fsencode(prefix)) > max(keep - 13, 0):
+        prefix = prefix[:-1]
+    return f"{prefix}~{digest}"
+
 
 
 @contextmanager
@@ -177,11 +229,21 @@ def _note(path: Path, exchanged: bool) -> None:
             _EXCHANGES[dev] = False
 
 
+def _probe_base(folder: Path, name: str) -> str:
+    """The name of :func:`exchanges_in`'s two folders in ``folder`` but their ``-0``/``-1``:
+    ``.<stem>.old-<host>-<pid>-<thread>-<n>``, ``stem`` the name ``name`` itself, or a long one's prefix and
+    hash (:func:`sibling_stem`: within NAME_MAX, and what :func:`tlm.storage.clean_stale` looks for beside
+    ``name``'s folder; a name near NAME_MAX made names too long, the probe failed and said no: h527)."""
+    stem = sibling_stem(Path(folder) / name, strict=False)
+    return f".{stem}.old-{_host()}-{os.getpid()}-{threading.get_native_id()}-{next(_PROBES)}"
+
+
 def exchanges_in(folder: Path, name: str = "tlm", probe: bool = True) -> bool:
     """Whether the file system of ``folder`` does :func:`exchange`: known from an exchange of this
     process there, else probed per file system (``st_dev``) by exchanging two empty folders
-    made in ``folder`` and removed at once (``.<name>.old-<host>-<pid>-<thread>-<n>-0`` and ``-1``:
-    names :func:`tlm.storage.clean_stale` removes where a killed process left them). ``probe`` False
+    made in ``folder`` and removed at once (``.<name>.old-<host>-<pid>-<thread>-<n>-0`` and ``-1``, a long
+    ``name`` shortened as the other siblings' are, :func:`sibling_stem`: names :func:`tlm.storage.clean_stale`
+    removes where a killed process left them). ``probe`` False
     (a reader: :func:`folder_lock`'s): nothing written, what is known of the file system, else False.
     False where the probe cannot tell: one of the two removed meanwhile by another writer's clean-up
     (asked again next time); a folder it cannot write into (read-only, not the user's: remembered for
@@ -206,7 +268,7 @@ def exchanges_in(folder: Path, name: str = "tlm", probe: bool = True) -> bool:
         return False
     if time.monotonic() - _UNWRITABLE.get(dev, -math.inf) <= TRUST_S and not os.access(folder, os.W_OK | os.X_OK):
         return False  # (a probe there could not write a while ago, and this folder is not writable either)
-    base = os.path.join(folder, f".{name}.old-{_host()}-{os.getpid()}-{threading.get_native_id()}-{next(_PROBES)}")
+    base = os.path.join(folder, _probe_base(folder, name))
     made: list[str] = []
     try:
         for path in (f"{base}-0", f"{base}-1"):
