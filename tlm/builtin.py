@@ -47,9 +47,15 @@ def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[st
     built-in experiment's (``configs/cornell.yaml`` outside a checkout) names the command
     that runs the built-in one (``tlm COMMAND cornell``), and the packaged file is not
     taken in its place. ``scenes``: the built-in scene names, for a hint when ``ref`` is
-    one of them (a config names a scene: it is no experiment)."""
+    one of them (a config names a scene: it is no experiment). ``-`` is refused, whether or not a file of that
+    name is here: it names no standard input (which ``/dev/stdin`` is), nor a file ``-`` that a user who meant
+    the standard input would get unsaid (``./-`` names that one)."""
     if not ref.strip():
         raise InputError("an empty name names no experiment file", key="config")
+    if ref == "-":  # (the Unix convention's stdin, or a file of that name: ambiguous, so neither)
+        out = {"reference": "", "calibrate": " --write FILE"}.get(command, " --out DIR")  # (a pipe has no name for one)
+        raise InputError(f"not the standard input here: give /dev/stdin (tlm {command} /dev/stdin{out} < FILE.yaml), "
+                         "or ./- for a file named -", source=ref)
     path = Path(ref)
     names = list_experiments()
     if path.exists() and not (path.is_dir() and ref in names):  # (a folder of that name does not hide one)

@@ -3,13 +3,16 @@ YAML file read where a config or a scene file goes: a mesh file given through a 
 <(cat pawn.obj)``), told by its bytes as a mesh file given by its name is (:func:`yaml_text`), and a
 file too large to be one (:class:`TooLarge`), whose hint names a scene file's ``geometry`` there only,
 not where another reader of :func:`tlm.config.read_text` (an ``arch.programs`` table) read it; and the text of the
-bytes such a file holds (:func:`decoded`: UTF-8 whatever the locale, told as a mesh's or not before it is decoded)."""
+bytes such a file holds (:func:`decoded`: UTF-8 whatever the locale, told as a mesh's or not before it is decoded);
+what a config given by a name of no file of its own is (:func:`nameless`), and the absolute path a run folder records
+of its config file, and the ``--set`` strings of a command it prints, to find them again from another folder
+(:func:`config_file`, :func:`rerun_sets`)."""
 
 from __future__ import annotations
 
 import os
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from tlm.errors import InputError
@@ -90,3 +93,40 @@ def nameless(path: str | os.PathLike) -> str | None:
     if stat.S_ISREG(mode) and descriptor_name(path):
         return "a file descriptor's name"
     return None
+
+
+def config_file(config_path: str | os.PathLike | None) -> str | None:
+    """``results.json``'s ``config_file``: the absolute path, links resolved (the file whose folder its relative paths
+    start at, :func:`tlm.config.file_folder`), of the config file ``config_path`` names as the run was given it
+    (``../exp/a.yaml``: from the working folder of then), which a reader in another folder finds again; None where
+    there is none to find again: no file (a mapping's None, a description), a config read once (:func:`nameless`: a
+    pipe, a named FIFO, ``/dev/stdin``), whose every setting the run folder's ``config.resolved.yaml`` keeps."""
+    if not config_path:
+        return None
+    try:
+        path = Path(config_path)
+        return str(path.resolve()) if nameless(path) is None and path.is_file() else None
+    except (OSError, ValueError, RuntimeError):
+        return None
+
+
+def rerun_sets(overrides: Iterable[str] | None) -> list[str]:
+    """The ``--set`` strings ``overrides``, given in this working folder, as a command run from another folder takes
+    them (``tlm reference``'s, that ``results.json`` records): a relative path given to ``scene`` or to a key of
+    ``PATH_KEYS`` absolute, as :func:`tlm.config.apply_overrides` took it (``scene=my.yaml``; not a built-in scene's
+    name, ``scene=cornell``); every other as given."""
+    from tlm.config_paths import paths_from, scene_from  # (tlm.config, which imports this module, has them)
+    from tlm.config_words import parse_yaml
+
+    out = []
+    for item in map(str, overrides or ()):
+        key, _, text = item.partition("=")
+        key, found = key.strip(), None
+        try:
+            value = parse_yaml(text)
+            found = scene_from(value, [Path.cwd()], False) if key == "scene" else paths_from(key, value, Path.cwd())
+            found = found if isinstance(found, str) and found != value and parse_yaml(found) == found else None
+        except Exception:  # (a value the run refused would have stopped it: kept as given)
+            found = None
+        out.append(f"{key}={found}" if found else item)
+    return out

@@ -44,7 +44,7 @@ from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
 from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
-from tlm.config_read import nameless
+from tlm.config_read import config_file, nameless, rerun_sets
 from tlm.config_words import dump_yaml, with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean, shell_word
 from tlm.experiments.dask_workers import ran_here
@@ -367,14 +367,17 @@ def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterab
     """What ``results.json``'s ``error`` records of a photon-map reference not computed as asked:
     ``skipped``, why (``--no-reference``, the run's ``reference`` false, or the config's
     ``reference.auto: false``), and ``command``, the ``tlm reference`` command that computes it
-    (:func:`reference_command`), as ``tlm run`` prints them. A config read once (:func:`read_once`:
+    (:func:`reference_command`), as ``tlm run`` prints them, but to run from any folder: the config file by its
+    absolute path (:func:`~tlm.config_read.config_file`), the files of ``overrides`` too
+    (:func:`~tlm.config_read.rerun_sets`). A config read once (:func:`read_once`:
     ``tlm run <(...)``'s ``/dev/fd/63``, which no later command finds) is named by the config the run
     folder ``out`` keeps, ``config.resolved.yaml`` (its every setting, the ``--set`` values included), and
     ``config_read_once`` says so."""
     skipped = "--no-reference" if cfg.reference.auto else "reference.auto: false"
     once = read_once(config_path)
     if once is None or out is None:
-        return {"skipped": skipped, "command": reference_command(config_path, overrides)}
+        return {"skipped": skipped, "command": reference_command(config_file(config_path) or config_path,
+                                                                 rerun_sets(overrides))}
     kept = (Path(out) / "config.resolved.yaml").absolute()
     return {"skipped": skipped, "command": reference_command(str(kept)),
             "config_read_once": f"{config_path} is {once}, read once: the command names the run's copy of it, "
@@ -485,6 +488,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
     return {
         "tlm": "results/1",
         "config": config_path,
+        "config_file": config_file(config_path),  # (absolute: config as typed is of the working folder of then)
         "overrides": list(res.overrides),
         "seed": res.cfg.seed,
         "mode": res.cfg.mode,
