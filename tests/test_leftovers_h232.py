@@ -110,8 +110,8 @@ def test_error_vs_cost_rows_say_the_rule_of_each_radius_as_results_json_does(tmp
     exp = tmp_path / "evc.yaml"
     exp.write_text(json.dumps({"base": BASE, "points": POINTS}))
     rows = run_error_vs_cost(exp, tmp_path / "out", truth=Truth(spp=0))
-    assert COLUMNS[-3:] == ("radius_rule", "caustic_radius_rule", "photons_weighted")  # (appended: the old ones
-    assert COLUMNS.index("simulate_seconds") == len(COLUMNS) - 4  # keep their places)
+    assert COLUMNS[-4:] == ("radius_rule", "caustic_radius_rule", "photons_weighted", "cut_share")  # (appended: the
+    assert COLUMNS.index("simulate_seconds") == len(COLUMNS) - 5  # old ones keep their places)
     points = [{"estimate.final_gather": 4}, {"estimate.final_gather": 0},
               {"estimate.final_gather": 0, "estimate.radius_fraction": 0.03, "estimate.caustic_radius": 0.5},
               {"estimate.final_gather": 0, "photons.count": 2, "seed": 1},

@@ -110,7 +110,7 @@ def test_a_run_and_its_cached_frame_say_it(tmp_path, cache):
     again = cached_render(cfg.settings, cfg.base, cfg.label)
     assert again.cached and first.summary["photons"]["cut_share"] == share
     assert [w for w in again.summary["warnings"] if w.startswith("photons.max_bounces")] == [line]
-    # (at 8 bounces the Cornell box keeps 1.05% of its light in flight at its 120000 photons: under the share)
+    # (at 8 bounces the Cornell box keeps 1.28% of its light in flight at its 120000 photons: under the share)
     quiet = tlm.run(tlm.load_config("cornell", {**TINY, "photons.max_bounces": 8}), tmp_path / "q", outputs="images")
     assert quiet["photons"]["cut_share"] < CUT_SHARE
     assert not [w for w in quiet["warnings"] if w.startswith("photons.max_bounces")]

@@ -504,9 +504,10 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
     computed, or the ground truth; no ground truth, and why: its ``truth_*`` columns are then empty)
     are the rows' ``attrs["notes"]``, and ``note`` gets each as it is known too (None: nothing is
     printed); its warnings (the reference not converged, or not cached; an override that sets nothing,
-    ``render={}``; a camera that faces nothing; a black reference or ground truth), which ``tlm error-vs-cost``
-    prints on stderr and its ``reference.json`` keeps (``warnings``, which the report lists), are their
-    ``attrs["warnings"]``; ``warn`` gets each as it is known too (None: nothing is printed)."""
+    ``render={}``; a camera that faces nothing; a black reference or ground truth; the points whose photon paths
+    ``photons.max_bounces`` cut with over 5% of the light in flight, their rows' ``cut_share``), which
+    ``tlm error-vs-cost`` prints on stderr and its ``reference.json`` keeps (``warnings``, which the report
+    lists), are their ``attrs["warnings"]``; ``warn`` gets each as it is known too (None: nothing is printed)."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
     notes: list[str] = []

@@ -372,12 +372,19 @@ class Timing:
     fifo: dict = field(default_factory=dict)  # the FIFOs' peak occupancy (tlm.arch.fifo.fifo_peaks)
 
     def to_dict(self) -> dict:
+        """Every figure, by ``results.json``'s names where its ``timing`` holds it (h529): ``simpy_events`` (also
+        ``events``, its name here before, kept for the code that reads it) and ``event_bound`` (:attr:`event_budget`);
+        ``cycles`` and ``fps``, which ``results.json`` holds at its top; ``frame_times`` (``timing.frames`` there is
+        their count). Not the config's (``clock_hz``, ``packet_size``, ``frames_asked``, ``images_in_flight``,
+        ``memory``, ``programs``), which ``results.json``'s ``timing`` adds."""
         return {
             "cycles": self.cycles,
             "fps": self.fps,
             "units": self.units,
             "frame_times": self.frames,
             "events": self.events,
+            "simpy_events": self.events,
+            "event_bound": self.event_budget,
             "phases": [p.name for p in self.program.phases],
             "left_out": self.program.left_out,
             "invariants": self.checks,

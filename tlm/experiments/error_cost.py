@@ -79,7 +79,8 @@ File format::
 
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
 pandas; in the CSV a null of a setting's column, :data:`SETTING_COLUMNS`, is ``null``, any other
-an empty cell), ``reference.json`` (the reference used: its metadata, its ``photons`` a round, ``k_nearest`` and
+an empty cell; a row's ``cut_share``: its trace's, as ``results.json``'s ``photons.cut_share``),
+``reference.json`` (the reference used: its metadata, its ``photons`` a round, ``k_nearest`` and
 ``rounds`` among them, its ``resolution`` [width, height], ``reference_converged``
 and whether it was ``computed`` by this study; ``reference_black`` and ``truth_black``, where the reference or
 the ground truth is black and no relative error can be measured; and the study's ``warnings``, each line it
@@ -112,6 +113,7 @@ from tlm.experiments.error_cost_frame import others_key as _others_key
 from tlm.experiments.error_cost_frame import own_passes as _own_passes
 from tlm.experiments.error_cost_truth import Truth, black_lines, truth_error, truth_noise_words
 from tlm.experiments.loading import cast_image, load_frame
+from tlm.experiments.photon_warnings import study_cut_said
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
     ReferenceSettings,
@@ -154,6 +156,7 @@ COLUMNS = (
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
     "radius_rule", "caustic_radius_rule",  # (appended: the columns before keep their places)
     "photons_weighted",  # (the accepted photons whose weight the filter computed: appended too)
+    "cut_share",  # (the share of the light photons.max_bounces cut, results.json photons.cut_share: appended, h529)
 )
 # the columns that hold a point's setting as its config has it: their null is the setting's value
 # (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other
@@ -328,7 +331,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     converged, or not cached: :func:`study_warning`; a ``--set`` or points value that sets nothing,
     ``render={}``, before any work: :func:`empty_lines`, naming the overrides ``via``; the frame's camera that
     faces nothing; a black reference or ground truth, :func:`black_lines`; a truth of few samples; once the points
-    ran, those measured against a reference much blurrier than their photons, :class:`StudyBlur`). Those lines,
+    ran, those whose photon paths photons.max_bounces cut with over 5% of the light in flight (their ``cut_share``:
+    :func:`~tlm.experiments.photon_warnings.study_cut_line`), and those measured against a reference much blurrier
+    than their photons, :class:`StudyBlur`). Those lines,
     each once, are kept in ``reference.json``'s ``warnings``, which the report lists (h417).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
@@ -479,6 +484,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
             **{f"{col}_rule": radius_rule_used(frame, traced.photons, name) if name in radii else None
                for col, name in (("radius", indirect), ("caustic_radius", "caustic"))},
+            "cut_share": traced.photons.cut_share,  # (its trace's, as results.json's photons.cut_share: h529)
         }
         if progress is not None:
             progress(i, len(points), row)
@@ -488,7 +494,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
-                         finish=lambda rows, _tmp: blur.said(say, rows),
+                         finish=lambda rows, _tmp: blur.said(say, study_cut_said(say, rows, cfg0, key)),
                          files=lambda rows: {"reference.json": {"key": key, **ref_meta,  # (its resolution: h507)
                                                                 "resolution": [scene.camera.width, scene.camera.height],
                                                                 "reference_converged": converged,

@@ -351,7 +351,8 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
     null), ``reference_k_nearest``, ``reference_rounds`` and ``reference_resolution`` (``resolution``, [width,
     height]: the run's, which the key holds; None where the caller does not give it)."""
     if image is None or meta is None:
-        return {"reference": key, "available": False, "hint": "run 'tlm reference CONFIG' to compute and cache it"}
+        return {"reference": key, "available": False,  # (the command and the Python API's call alike: h529)
+                "hint": "run 'tlm reference CONFIG' (from Python: tlm.reference(config)) to compute and cache it"}
     npy = meta.get("npy")
     return {"reference": key, "available": True, **image_error(pmap, image),
             "reference_converged": meets_tolerance(meta, settings), "reference_rounds": meta.get("rounds"),

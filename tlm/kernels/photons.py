@@ -17,7 +17,8 @@ arrays."
   roulette: power unchanged) or refracts (power times transmittance), total internal
   reflection included; directions about the interpolated shading normals, as for eye
   rays. Paths stop at ``max_bounces`` surface hits; the power the global group's photons
-  still carried then is :attr:`PhotonMaps.cut_power` (:func:`cut_power`).
+  still carried then is :attr:`PhotonMaps.cut_power` (:func:`cut_power`), its share that of
+  the power that reached the scene (:attr:`PhotonMaps.cut_share`).
 * **What the maps hold.** The ray-cast frame already renders direct light (shadow
   rays), so a photon's *first* surface hit, straight from the light, is not stored (nor
   after crossing only index-matched glass, which shadow rays pass too): the caustic map
@@ -95,10 +96,20 @@ def cut_power(powers: Sequence[np.ndarray]) -> tuple[float, float, float]:
 
 
 def cut_share(cut: Sequence[float], emitted: Sequence[float]) -> float:
-    """``cut``'s luminance (:data:`LUMINANCE`) over ``emitted``'s: the share of the lights' power the
-    photons still carried when ``max_bounces`` ended their paths (0.0 where nothing was emitted)."""
+    """``cut``'s luminance (:data:`LUMINANCE`) over ``emitted``'s (the trace's: the power that reached the scene,
+    :func:`reached`): the share of it the photons still carried when ``max_bounces`` ended their paths (0.0 where
+    nothing was emitted)."""
     total = math.fsum(w * x for w, x in zip(LUMINANCE, emitted, strict=True))
     return math.fsum(w * x for w, x in zip(LUMINANCE, cut, strict=True)) / total if total > 0 else 0.0
+
+
+def reached(work: dict[str, np.ndarray]) -> np.ndarray:
+    """Which photons reached the scene, by their ``work`` (:data:`~tlm.kernels.work.PHOTON_WORK`, per photon): all
+    but those whose first ray hit nothing (no ``bounces``, a ray ``lost``), whose power left the scene at once (an
+    open scene's sky; most of a directional light's disc, which covers the scene's bounding sphere). A photon that
+    ``max_bounces`` 0 stops before its first ray is counted: its power is cut, not gone. The denominator of
+    :attr:`PhotonMaps.cut_share`, the same rule for every light (h529)."""
+    return (work["bounces"] > 0) | (work["lost"] == 0)
 
 
 def photon_spans(n: int, max_bounces: int, batch_rays: int | None) -> list[tuple[int, int]]:
@@ -174,9 +185,11 @@ class PhotonMaps:
     emitted: int
     global_map: PhotonMap | None = None  # final gathering's: every diffuse hit of the global group (None: off)
     # the power (RGB) the global group's photons still carried when max_bounces ended their paths, an estimate of
-    # the lights' power still in flight, and its luminance's share of the lights' power (the global group's at
-    # emission); not the caustic group's: aimed at the specular objects, its photons estimate a part of that light
-    # again (its specular paths), which summed with the global group's counted it twice (h511: a mirror box 132%)
+    # the lights' power still in flight, and its luminance's share of the power that reached the scene (the global
+    # group's at emission less that of its photons whose first ray hit nothing, :func:`reached`: an open scene's
+    # sky, a directional light's disc past the scene, which as a share of all it emits hid the cut, h529); not the
+    # caustic group's: aimed at the specular objects, its photons estimate a part of that light again (its
+    # specular paths), which summed with the global group's counted it twice (h511: a mirror box 132%)
     cut_power: tuple[float, float, float] = (0.0, 0.0, 0.0)
     cut_share: float = 0.0
 
@@ -558,5 +571,5 @@ def trace_photons(
     lost = cut_power(cut)
     photons = PhotonMaps(made[("caustic",)], made[("indirect",)], emitted=n,
                          global_map=made[("global",)] if global_map else None, cut_power=lost,
-                         cut_share=cut_share(lost, cut_power([power[~caustic_group]])))
+                         cut_share=cut_share(lost, cut_power([power[~caustic_group & reached(work)]])))
     return PhotonTrace(photons, work)
