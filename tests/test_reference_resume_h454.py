@@ -28,7 +28,8 @@ from tlm.storage import process_tag
 # cycles of 2 rounds, at most 6 of them; a tolerance no cycle meets: all 12 rounds
 REF = {"photons": 500, "k_nearest": 8, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 12, "spp": 2}
 CONFIG = {"scene": "cornell", "mode": "pmap", "resolution": [4, 4], "photons": {"count": 500}, "reference": REF}
-VARIES = ("host_seconds", "resumed_from_round")  # (all else the same as an uninterrupted compute's)
+VARIES = ("host_seconds", "resumed_from_round", "meta_sha256")  # (all else the same as an uninterrupted compute's;
+# the seal is a digest of the rest, host_seconds among it)
 
 
 def _frame(**ref):

@@ -13,11 +13,20 @@ repository's ``scenes/`` as ``tlm/_scenes`` and ``configs/`` as ``tlm/_configs``
 a checkout keeps beside ``tlm/``, are not read. Those are data, not code, and every key
 that depends on a scene hashes the scene's own content (the functional key, the reference's, the scene cache's entries).
 :func:`added` tells them: a top-level folder of the package named in :data:`ADDED`.
+
+A class that a registry selects from outside tlm (a plug-in estimator or scheduler) is no part of it: its
+own digest, :func:`plugin_digest` (its top-level package's files), joins the keys of what it computes
+(:func:`tlm.registry.plugins`).
+
+It also holds a cache entry's own digest, its seal (:func:`sealed`, :func:`seal_problem`): the sha256 of a
+reference's or a Mitsuba ground truth's ``meta.json`` (:data:`META_SEAL`), checked as the entry is read
+(:func:`read_sealed`), for the two layers that write them (the oracle, the experiments).
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -69,3 +78,139 @@ def use_code(code: str) -> None:
     the sweep's (its points are refused otherwise, with why: :mod:`tlm.experiments.sweep_point`)."""
     global _CODE
     _CODE = code
+
+
+# ------------------------------------------------------------------ a plug-in's code (a class from outside tlm)
+
+
+def plugin_digest(cls: type) -> str:
+    """16 hex digits of sha256 over the code of a class a registry selects from outside tlm (a plug-in:
+    :func:`tlm.registry.plugins`), which :func:`code_fingerprint` does not read: for each top-level package
+    that it or a base class comes from (tlm's own and Python's standard library's left out), the paths and
+    bytes of that package's ``.py`` and ``.yaml`` files (:func:`package_files`, as tlm's), or of the one
+    module file where it is a module, not a package (``mine.py``, a script's ``__main__``). So an edit of the
+    class's module, or of anything of its package it may import, changes it; another package it imports
+    (numpy), a data file it reads or a compiled extension does not. A class of no file (typed in an
+    interpreter) is keyed by its methods' bytecode and its plain attributes instead. Read when asked, not
+    when imported: the registry remembers it per class (:meth:`tlm.registry.Registry.plugin`), so a module
+    edited but not imported again keeps its digest."""
+    import sys
+
+    h = hashlib.sha256()
+    tops = {c.__module__.partition(".")[0] for c in cls.__mro__} - {"tlm", "builtins"}
+    for top in sorted(tops - set(sys.stdlib_module_names)):
+        h.update(top.encode() + b"\0")
+        mod = sys.modules.get(top)
+        roots = sorted(getattr(mod, "__path__", None) or [])
+        one = None if roots else getattr(mod, "__file__", None)
+        files = ([(Path(r), f) for r in roots for f in package_files(Path(r))] if roots
+                 else [(Path(one).parent, Path(one))] if one and Path(one).is_file() else [])
+        for root, f in files:
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+        if not files:  # (no file: the class itself, as the interpreter holds it)
+            _bytecode(cls, top, h)
+    return h.hexdigest()[:16]
+
+
+def _bytecode(cls: type, top: str, h) -> None:
+    """Feed ``h`` with the methods' bytecode (``marshal``) and the plain attributes (numbers, strings) of
+    ``cls`` and its bases of the module ``top``, in a fixed order."""
+    import marshal
+
+    for c in cls.__mro__:
+        if c.__module__.partition(".")[0] != top:
+            continue
+        h.update(c.__qualname__.encode() + b"\0")
+        for name, value in sorted(vars(c).items()):
+            fn = getattr(value, "__func__", getattr(value, "fget", value))
+            code = getattr(fn, "__code__", None)
+            if code is not None:
+                h.update(name.encode() + b"\0" + marshal.dumps(code) + b"\0")
+            elif isinstance(value, (bool, int, float, str, bytes, type(None))):
+                h.update(name.encode() + b"\0" + repr(value).encode() + b"\0")
+
+
+# ------------------------------------------------------------------ a cache entry's own digest (its seal)
+
+
+def sealed(doc: dict, field: str) -> dict:
+    """``doc`` (a cache entry's metadata: a reference's or a ground truth's ``meta.json``) with ``field`` the sha256
+    of the canonical JSON of the rest of it (its keys sorted, no spaces; a float's repr round-trips), so that a value
+    changed in the file (a byte of a count) is told from what was written, as a functional sidecar's own
+    ``sidecar_sha256`` is (:func:`tlm.experiments.frames.sealed`, the same digest)."""
+    rest = {k: v for k, v in doc.items() if k != field}
+    text = json.dumps(rest, sort_keys=True, separators=(",", ":")).encode()
+    return {**rest, field: hashlib.sha256(text).hexdigest()}
+
+
+def seal_problem(doc: dict, field: str) -> str | None:
+    """Why ``doc`` (as read) is not what :func:`sealed` wrote (its ``field`` missing, or not the digest of the
+    rest of it), or None."""
+    held = doc.get(field)
+    if not isinstance(held, str):
+        return f"it has no {field!r}"
+    if sealed(doc, field)[field] != held:
+        return f"its content differs from its {field!r}"
+    return None
+
+
+META_SEAL = "meta_sha256"  # a reference's or a ground truth's meta.json: the digest of the rest of it (sealed)
+_OLDER: set[str] = set()  # the entries of an older tlm (no seal) said in this process (read_sealed)
+
+
+def read_sealed(folder: Path, name: str, key: str, what: str, again: str, fmt: str, renew: str,
+                fields: dict | None = None, optional: dict | None = None):
+    """:func:`tlm.caches.cached_image` of the entry ``folder`` (its image ``name`` and ``meta.json``, of
+    :func:`sealed` ``meta.json``: its ``format`` ``fmt`` and its own digest :data:`META_SEAL`), or None.
+
+    Its ``meta.json`` not as its digest says, without it or without its ``format`` (where it has either), or of a
+    format that is none of tlm's, is a damaged entry: said once as a warning naming the file, removed (only where
+    the folder is still the one read: not one another process put in its place meanwhile), and computed again
+    (``what``, ``again``: as :func:`~tlm.caches.cached_image` says it). One of another format of the same name
+    (another tlm's) is not read, nor removed: computed again and replaced, quietly, as a functional sidecar of
+    another format is. One with neither (written by a tlm before the seals, 2026-12-03) is used as it is, said once
+    in this process in a warning (``renew``: what computes it again, sealed): a value changed in it cannot be told,
+    and computing it again (a reference, minutes; a ground truth, up to hours) is the user's call."""
+    import os
+
+    from tlm.caches import cached_image, remove_entry
+    from tlm.storage import warn
+
+    for _ in range(5):
+        try:  # (held open: the folder read is told from one put in its place meanwhile, as cached_image does)
+            held = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+        except OSError:
+            held = None
+        try:
+            found = cached_image(folder, name, key, what, again, fields, optional)
+            if found is None:
+                return None
+            meta = found[1]
+            got = meta.get("format")
+            if got is None and META_SEAL not in meta:
+                if str(folder) not in _OLDER:
+                    _OLDER.add(str(folder))
+                    warn(f"{what} cache entry {folder} was written by an older tlm: its meta.json has no "
+                         f"{META_SEAL!r} (a digest of its own), so a value changed in it cannot be told; it is used "
+                         f"as it is ({renew})")
+                return found
+            if isinstance(got, str) and got != fmt and got.partition("/")[0] == fmt.partition("/")[0]:
+                return None  # (another tlm's: computed again and replaced)
+            why = (seal_problem(meta, META_SEAL) if got == fmt else f"it has no {'format'!r}" if got is None
+                   else f"format {json.dumps(got)[:60]}: not a {what} cache entry's")
+            if why is None:
+                return found
+            try:
+                still = held is not None and os.path.samestat(os.stat(folder), os.fstat(held))
+            except OSError:
+                still = False
+            if not still:
+                continue  # (replaced while it was read: read the new one)
+            left = remove_entry(folder, folder.parent)
+        finally:
+            if held is not None:
+                os.close(held)
+        done = "removed" if left is None else f"not removed ({left})"
+        warn(f"damaged {what} cache entry {folder / 'meta.json'} ({why}): {done}; {again}")
+        return None
+    return None

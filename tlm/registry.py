@@ -16,6 +16,10 @@ implements them, in the built-in *provider* modules the registry imports the fir
 it is asked for its names, and in any installed package that declares an entry point in
 the registry's group (``[project.entry-points."tlm.estimators"]``), so a researcher's
 own package can add one without editing tlm. docs/architecture.md shows both.
+
+Such a class's code is no part of tlm's code fingerprint: :func:`plugins` lists the classes from outside
+tlm that a config selects, each with its code's digest, which the cache keys, the sweep points' hashes
+and a run's ``results.json`` hold (a config of tlm's own classes alone: none, its keys as before).
 """
 
 from __future__ import annotations
@@ -33,11 +37,16 @@ _LOAD_LOCK = threading.RLock()  # held while a registry imports its providers (s
 class Registry:
     """Named classes of one kind, filled by :meth:`register` and by its provider modules."""
 
-    def __init__(self, kind: str, providers: tuple[str, ...], group: str):
+    def __init__(self, kind: str, providers: tuple[str, ...], group: str, setting: str | None = None):
         self.kind = kind
         self.providers = providers  # modules that register the built-in classes on import
         self.group = group  # entry-point group of other packages' classes
+        self.setting = setting  # the config's dotted key whose value names one (plugins), if any
         self._classes: dict[str, type] = {}
+        self._dists: dict[str, tuple] = {}  # name -> (distribution, version) of the entry point that gave it
+        self._plugins: dict[tuple[str, type], dict] = {}  # (name, class) -> its record (plugin)
+        if setting is not None:
+            REGISTRIES.append(self)
         self._loaded = False
         self._loading = False  # (set while this registry's providers are imported)
 
@@ -71,6 +80,8 @@ class Registry:
                     cls = ep.load()
                     if ep.name not in self._classes:
                         self.register(ep.name)(cls)
+                    if self._classes[ep.name] is cls and getattr(ep, "dist", None) is not None:
+                        self._dists[ep.name] = (ep.dist.name, ep.dist.version)
                 self._loaded = True
             finally:
                 self._loading = False
@@ -101,9 +112,60 @@ class Registry:
     def __repr__(self) -> str:
         return f"Registry({self.kind!r}, {list(self._classes) if self._loaded else 'not loaded'})"
 
+    def plugin(self, name: str) -> dict | None:
+        """None where ``name``'s class is tlm's own (a module of ``tlm``: :func:`~tlm.fingerprint.code_fingerprint`
+        covers it), else its record: ``name``, ``module``, ``class``, ``distribution`` and ``version`` (its entry
+        point's, else the installed distribution that holds its top-level package; None where none is known) and
+        ``digest`` (:func:`~tlm.fingerprint.plugin_digest`), made once per class in a process."""
+        cls = self[name]
+        if cls.__module__.partition(".")[0] == "tlm":
+            return None
+        if (name, cls) not in self._plugins:
+            from tlm.fingerprint import plugin_digest
 
-ESTIMATORS = Registry("radiance estimator", ("tlm.render.estimators",), "tlm.estimators")
-SCHEDULERS = Registry("scheduler", ("tlm.arch.schedulers",), "tlm.schedulers")
+            dist, version = self._dists.get(name) or _distribution(cls.__module__.partition(".")[0])
+            self._plugins[name, cls] = {"name": name, "module": cls.__module__, "class": cls.__qualname__,
+                                        "distribution": dist, "version": version, "digest": plugin_digest(cls)}
+        return self._plugins[name, cls]
+
+
+REGISTRIES: list[Registry] = []  # every registry, in the order made (plugins)
+
+
+def _distribution(top: str) -> tuple[str | None, str | None]:
+    """The installed distribution that declares the top-level package ``top``, and its version, or Nones."""
+    from importlib.metadata import PackageNotFoundError, packages_distributions, version
+
+    names = packages_distributions().get(top) or []
+    try:
+        return (names[0], version(names[0])) if names else (None, None)
+    except PackageNotFoundError:
+        return names[0], None
+
+
+def plugins(config: dict) -> list[dict]:
+    """The plug-ins that ``config`` (a resolved config: :func:`tlm.config.to_dict`, or part of one) selects: for
+    each registry whose :attr:`~Registry.setting` it holds (``estimate.filter``, ``arch.scheduler``) and whose
+    value names a class from outside tlm, ``{"setting": ..., **Registry.plugin(name)}``; ``[]`` where it selects
+    tlm's own alone. What the cache keys and the sweep points' hashes add to tlm's code fingerprint, and what a
+    run's ``results.json`` records (``plugins``)."""
+    out = []
+    for reg, name in zip(REGISTRIES, selected(config)):
+        if isinstance(name, str) and name in reg and (found := reg.plugin(name)) is not None:
+            out.append({"setting": reg.setting, **found})
+    return out
+
+
+def selected(config: dict) -> tuple:
+    """The value ``config`` gives each registry's :attr:`~Registry.setting` (None where it has none), in
+    :data:`REGISTRIES`' order: what :func:`plugins` reads of it."""
+    values = [config.get(reg.setting.partition(".")[0]) for reg in REGISTRIES]
+    return tuple(v.get(reg.setting.partition(".")[2]) if isinstance(v, dict) else None
+                 for reg, v in zip(REGISTRIES, values))
+
+
+ESTIMATORS = Registry("radiance estimator", ("tlm.render.estimators",), "tlm.estimators", "estimate.filter")
+SCHEDULERS = Registry("scheduler", ("tlm.arch.schedulers",), "tlm.schedulers", "arch.scheduler")
 
 
 def may_run_on(scheduler: str, in_flight: int, frames: int) -> bool:

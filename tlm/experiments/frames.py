@@ -68,6 +68,7 @@ from tlm.experiments.frame_scenes import scene_fingerprint as scene_fingerprint
 from tlm.experiments.run_warnings import emitted_photons, reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
+from tlm.registry import plugins
 from tlm.render.checks import note_warnings
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
 from tlm.scenes.loader import load_scene, resolve_scene_path
@@ -548,7 +549,11 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     the config holds (:func:`tlm.config.scene_from`): its content is ``scene_fingerprint``,
     so the same project in another folder (moved, copied, another user's checkout) finds the
     frames it rendered, and two files of one content but other names (which a result names
-    by the file) stay two entries. A built-in scene's name is kept as it is."""
+    by the file) stay two entries. A built-in scene's name is kept as it is.
+
+    A class that a setting it keeps selects from outside tlm (``estimate.filter``, a plug-in:
+    :func:`tlm.registry.plugins`) adds its record, its code's digest with it, under ``plugins``; a frame of
+    tlm's own classes alone has the key it had before plug-ins were keyed."""
     if isinstance(cfg, dict):
         cfg = config_from_dict(cfg)
     unread = set(inert_settings(cfg)) - recorded_inert_settings(cfg)  # (less those its summary records)
@@ -564,5 +569,8 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
             keep[section][name] = value
     # (not what changes only brightness or speed: the exposure, the kernels' threads)
     keep["render"] = {k: v for k, v in keep["render"].items() if k not in ("exposure", "threads")}
-    blob = json.dumps({"cfg": keep, "scene": scene_fingerprint, "code": code_version}, sort_keys=True)
+    doc = {"cfg": keep, "scene": scene_fingerprint, "code": code_version}
+    if chosen := plugins(keep):  # (a class from outside tlm that the frame reads: its code; none, as before)
+        doc["plugins"] = chosen
+    blob = json.dumps(doc, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:24]

@@ -45,9 +45,10 @@ from pathlib import Path
 import numpy as np
 
 from tlm.cache_admin import partial_info, partial_rounds  # (the one reader of a partial's header, re-exported)
-from tlm.caches import cache_problem, cache_root, cached_image, file_digest
+from tlm.caches import cache_problem, cache_root, file_digest
 from tlm.config import ReferenceConfig, RunConfig
 from tlm.errors import EnvironmentFailure, InputError, shell_word
+from tlm.fingerprint import META_SEAL, read_sealed, sealed
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder
 
@@ -73,7 +74,8 @@ def cache_dir() -> Path:
 
 
 def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = None, private: bool = True) -> Path:
-    """Write ``reference.npy`` and ``meta.json`` atomically into the cache (or ``root``):
+    """Write ``reference.npy`` and ``meta.json`` (:data:`META_FORMAT`, sealed with its own digest,
+    :func:`~tlm.fingerprint.sealed`) atomically into the cache (or ``root``):
     an :class:`~tlm.errors.EnvironmentFailure` naming why where its folder cannot be written.
     ``private``: a ``root`` is made this user's only first (:func:`private_folder`; not for a
     sweep's own copy in its output folder, :func:`holding`)."""
@@ -87,8 +89,9 @@ def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = 
         private_folder(folder, final)
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
-        body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
-        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
+        # (its format and, last, its own digest: a value changed in it is a damaged entry, load_reference)
+        body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy"), "format": META_FORMAT}
+        (tmp / "meta.json").write_text(json.dumps(sealed(body, META_SEAL), indent=2) + "\n", encoding="utf-8")
     return final
 
 
@@ -113,6 +116,7 @@ META_FIELDS = {"rounds": int, "relative_standard_error": (*_NUMBER, type(None))}
 META_OPTIONAL = {"photons": int, "k_nearest": int, "tolerance": _NUMBER, "min_rounds": int, "max_rounds": int,
                  "spp": int, "rounds_per_cycle": int, "cycles": int, "standard_error_per_cycle": list,
                  "converged": bool}
+META_FORMAT = "reference-meta/2"  # /2: sealed with its own digest (META_SEAL); an entry of neither is an older tlm's
 
 
 def load_reference(key: str, root: Path | None = None, again: str = "'tlm reference' computes it again"
@@ -124,14 +128,21 @@ def load_reference(key: str, root: Path | None = None, again: str = "'tlm refere
     of ``reference.npy`` (an older tlm's), without a key of :data:`META_FIELDS`, or with one of
     it or of :data:`META_OPTIONAL` of another type; ``reference.npy`` not the file
     ``meta.json`` describes, or not an image) is reported once as a warning naming the file
-    and removed: it is computed again as if it had never been cached.
+    and removed: it is computed again as if it had never been cached. So is one whose ``meta.json``
+    is not as its own digest says (:func:`~tlm.fingerprint.read_sealed`: a value changed in it); one
+    written before the seals (no digest, no format) is used, said once in a warning.
     """
     if root is None and (own := (_HELD.get() or {}).get(key)) is not None:  # (a sweep's own copy, :func:`holding`)
-        found = cached_image(Path(own), "reference.npy", key, "reference", again, META_FIELDS, META_OPTIONAL)
+        found = _read(Path(own), key, again)
         if found is not None:
             return found
-    folder = (cache_dir() if root is None else Path(root)) / key
-    return cached_image(folder, "reference.npy", key, "reference", again, META_FIELDS, META_OPTIONAL)
+    return _read((cache_dir() if root is None else Path(root)) / key, key, again)
+
+
+def _read(folder: Path, key: str, again: str) -> tuple[np.ndarray, dict] | None:
+    """The reference in ``folder`` (:func:`load_reference`), its ``meta.json``'s seal checked."""
+    return read_sealed(folder, "reference.npy", key, "reference", again, META_FORMAT,
+                       "'tlm reference --force' computes it again, sealed", META_FIELDS, META_OPTIONAL)
 
 
 # reference key -> the folder of the copy a sweep holds of it (:func:`holding`): this thread's, while a point runs

@@ -59,6 +59,7 @@ from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
 from tlm.kernels.work import WORK_KEYS
 from tlm.progress import Ticking, Timer, progress_bar
+from tlm.registry import plugins
 from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
@@ -522,6 +523,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
         "versions": versions(),
         **code_state(),
+        "plugins": plugins(to_dict(res.cfg)),  # (the classes from outside tlm it selected, their code's digest)
         "ran": ran_here(),  # (who ran it, as a sweep point records it: worker None outside a Dask worker, host, pid)
         "warnings": warnings,
     }

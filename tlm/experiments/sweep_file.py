@@ -62,6 +62,7 @@ from tlm.experiments.sweep_keys import keyed_field as _keyed
 from tlm.experiments.sweep_keys import point_inputs as point_inputs  # (what a test replaces: read here)
 from tlm.experiments.sweep_sets import at_default, given_by, named, refuse_factor_sets, said_once, set_leaves
 from tlm.fingerprint import code_fingerprint
+from tlm.registry import plugins, selected
 
 _SCALARS = (str, int, float, bool, type(None))
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
@@ -283,13 +284,23 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None, folder: Pa
     the same project in another folder, moved or copied, has the same keys.
     """
     return _key([_keyed(name, resolved[name], folder) for name in sorted(resolved)],
-                None if inputs is None else _json(inputs))
+                None if inputs is None else _json(inputs), _plugins(resolved))
 
 
-def _key(keyed: list[str], inputs: str | None) -> str:
-    """16 hex digits of sha256 over ``{"code": ..., "config": {fields}, "inputs": ...}`` (keys
-    sorted): the fields' :func:`_keyed` texts in the order of their names, the inputs' JSON."""
+def _plugins(resolved: dict) -> str | None:
+    """The JSON of the plug-ins the point's resolved config selects (:func:`tlm.registry.plugins`: a class
+    from outside tlm, its code's digest), or None where it selects tlm's own alone."""
+    chosen = plugins(resolved)
+    return _json(chosen) if chosen else None
+
+
+def _key(keyed: list[str], inputs: str | None, chosen: str | None = None) -> str:
+    """16 hex digits of sha256 over ``{"code": ..., "config": {fields}, "inputs": ..., "plugins": ...}``
+    (keys sorted): the fields' :func:`_keyed` texts in the order of their names, the inputs' JSON, and
+    ``chosen``, :func:`_plugins`' JSON, only where the point selects a plug-in (the key of a point of
+    tlm's own classes alone is the one it had before)."""
     more = "" if inputs is None else f',"inputs":{inputs}'
+    more += "" if chosen is None else f',"plugins":{chosen}'
     blob = f'{{"code":{json.dumps(code_fingerprint())},"config":{{{",".join(keyed)}}}{more}}}'
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -531,6 +542,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
     order = sorted(checked.template)  # (the key's JSON sorts its keys)
     asked, by_factor = _trace_asked(base, settings, grid, zipped, overrides)
     traced: dict[int, tuple[dict, str]] = {}  # id of an arch field -> (its config, its keyed text), per trace
+    chosen: dict[tuple, str | None] = {}  # the registries' settings (selected) -> the plug-ins' JSON (_plugins)
     # the config less arch, as the JSON of its fields: those the factors leave, then the others
     same = tuple(f.full for name, f in checked.template.items() if f is not None and name != "arch")
     other = [name for name, f in checked.template.items() if f is None and name != "arch"]
@@ -549,10 +561,13 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
             traced[id(arch), trace] = _traced(arch, trace, bool(by_factor), here)
         config, keyed = {name: f.resolved for name, f in fields.items()}, traced[id(arch), trace]
         config["arch"] = keyed[0]
+        selects = selected(config)  # (what plugins reads of it: estimate.filter, arch.scheduler)
+        if selects not in chosen:
+            chosen[selects] = _plugins(config)
         # config_hash(resolved, inputs), from the fields' own JSON
         points.append(Point(i, factors, config,
-                            _key([keyed[1] if name == "arch" else fields[name].keyed for name in order], shown),
-                            inputs["functional"]))
+                            _key([keyed[1] if name == "arch" else fields[name].keyed for name in order], shown,
+                                 chosen[selects]), inputs["functional"]))
     _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert, overrides)
 

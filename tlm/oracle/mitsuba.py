@@ -94,9 +94,10 @@ import numpy as np
 
 from tlm.caches import cache_root
 from tlm.errors import EnvironmentFailure, InputError
+from tlm.fingerprint import META_SEAL, read_sealed, sealed
 from tlm.scenes.lights import own_points
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder
+from tlm.storage import atomic_folder, warn
 
 VARIANT = "scalar_rgb"
 INTEGRATORS = ("direct", "path", "ptracer")
@@ -381,16 +382,19 @@ def oracle_key(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
     return h.hexdigest()[:20]
 
 
+META_FORMAT = "ground-truth-meta/2"  # /2: sealed with its own digest (tlm.fingerprint.META_SEAL)
+
+
 def save_ground_truth(key: str, image: np.ndarray, meta: dict) -> Path:
-    """Write ``image.npy`` (float32) and ``meta.json`` (with the image's size and checksum)
-    atomically into the cache."""
+    """Write ``image.npy`` (float32) and ``meta.json`` (with the image's size and checksum, :data:`META_FORMAT`
+    and, last, its own digest: :func:`~tlm.fingerprint.sealed`) atomically into the cache."""
     from tlm.caches import file_digest
 
     final = cache_dir() / key
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "image.npy", np.asarray(image, dtype=np.float32))
-        body = {"key": key, **meta, "npy": file_digest(tmp / "image.npy")}
-        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
+        body = {"key": key, **meta, "npy": file_digest(tmp / "image.npy"), "format": META_FORMAT}
+        (tmp / "meta.json").write_text(json.dumps(sealed(body, META_SEAL), indent=2) + "\n", encoding="utf-8")
     return final
 
 
@@ -401,12 +405,13 @@ def load_ground_truth(key: str) -> tuple[np.ndarray, dict] | None:
     missing, unreadable, cut short, not the bytes its size and checksum in ``meta.json``
     say, or not the (height, width, 3) floats ``meta.json`` describes) is reported once as
     a warning naming the file and removed: it is rendered again as if it had never been
-    cached (as the references' and the scenes' caches do).
+    cached (as the references' and the scenes' caches do). So is one whose ``meta.json`` is not as
+    its own digest says (:func:`~tlm.fingerprint.read_sealed`: a value changed in it); one written
+    before the seals (no digest, no format) is used, said once in a warning.
     """
-    from tlm.caches import cached_image
-
-    found = cached_image(cache_dir() / key, "image.npy", key, "Mitsuba ground-truth", "it is rendered again "
-                         "when next needed")
+    folder = cache_dir() / key
+    found = read_sealed(folder, "image.npy", key, "Mitsuba ground-truth", "it is rendered again when next needed",
+                        META_FORMAT, f"removing {folder} renders it again, sealed")
     return None if found is None else (found[0].astype(np.float64), found[1])
 
 
@@ -418,6 +423,12 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     ``meta.json`` holds the key, the settings, the Mitsuba version, the variant, the
     image size and the render's wall seconds.
 
+    The Mitsuba version is checked as the image is read, not in the key (which needs no Mitsuba, so that a
+    cached image is used where Mitsuba is not installed, :class:`tlm.experiments.error_cost_truth.Truth`, and
+    entries cached before this check are found): one rendered by another version than the one installed
+    (``pip install -U mitsuba``) is not used (None with ``compute=False``) but rendered again and
+    replaced, said once per image in this process; without Mitsuba the cached one is used as it is.
+
     A cache that cannot be written (read-only, full, a file in the way) loses no image: the
     one rendered is returned all the same (as float32, as a cached one is), for this run
     only, and :mod:`tlm.caches` says once on stderr which cache could not be written and
@@ -426,6 +437,8 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     _check_settings(integrator, spp, max_depth, seed)
     key = oracle_key(scene, integrator=integrator, spp=spp, max_depth=max_depth, seed=seed, normals=normals)
     cached = load_ground_truth(key)
+    if cached is not None and _other_version(cached[1]):
+        cached = None
     if cached is not None or not compute:
         return cached
     t0 = time.perf_counter()
@@ -449,6 +462,27 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
         # the entry's folder: storage.check_destination; said once by caches.cache_failed)
         return np.asarray(image, dtype=np.float32).astype(np.float64), {"key": key, **meta}
     return load_ground_truth(key)
+
+
+_OTHER_SAID: set[str] = set()  # the ground truths of another Mitsuba said in this process (_other_version)
+
+
+def _other_version(meta: dict) -> bool:
+    """Whether the cached ground truth of ``meta`` was rendered by another Mitsuba than the one installed (said
+    once per key in this process); False where Mitsuba is not installed (nothing can render it again)."""
+    try:
+        now = mitsuba_version()
+    except InputError:
+        return False
+    was = meta.get("mitsuba_version")
+    if was == now:
+        return False
+    if meta.get("key") not in _OTHER_SAID:
+        _OTHER_SAID.add(meta.get("key"))
+        warn(f"the Mitsuba ground truth {meta.get('key')} cached in {cache_dir()} was rendered by Mitsuba "
+             f"{was}, not by the Mitsuba installed ({now}): not used; rendered again by this one where it is "
+             "computed")
+    return True
 
 
 def away_from_lights(sees_light: np.ndarray) -> np.ndarray:
