@@ -195,9 +195,12 @@ def _why(then: dict, sweep, folders: list[Path], code: str | None) -> str | None
     of = f"{source}, " if isinstance(source, str) and source != str(sweep.path) else ""  # (another file's)
     said = f"{'points' if len(folders) != 1 else 'a point'} of the folder's earlier sweep ({of}its sweep.yaml " \
            "before this one's)"
+    if changed and old_code:  # (the code first: it alone changes every point's hash, whatever the grid did: h531)
+        them = "them" if len(folders) != 1 else "it"
+        return (f"{said}, run by {was}, which alone leaves {them} behind (a point's hash holds the code's "
+                f"fingerprint); the sweep changed since too: {listing(changed, named=SHOWN, more='more changes')}")
     if changed:
-        said += f": {listing(changed, named=SHOWN, more='more changes')}"
-        return f"{said}; run by {was} too" if old_code else said
+        return f"{said}: {listing(changed, named=SHOWN, more='more changes')}"
     if old_code:  # (the same sweep: the code alone)
         return f"{said}, of the same settings and factors, run by {was}"
     return None  # (the code or an input file, untold: the line says what may have left them)

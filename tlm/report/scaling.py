@@ -270,9 +270,10 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
     ``{"pms": [...], "points": [...], "values": {...}}`` (``values``: the other factors' values, by key;
     empty where N is crossed with none), the points sorted by scheduler
     (static first) then N, each ``{"point", "scheduler", "pipelines", "throughput",
-    "speedup", "idle": {pm: fraction}}``: ``throughput`` is the row's
-    ``cycles.throughput`` (TThru), ``speedup`` TThru(1) / TThru(N) of the same scheduler
-    (None without an N = 1 point), ``idle`` the row's ``idle.<pm>`` as written. What
+    "speedup", "base", "idle": {pm: fraction}}``: ``throughput`` is the row's
+    ``cycles.throughput`` (TThru), ``speedup`` TThru(N0) / TThru(N) of the same scheduler, ``base`` that N0, the
+    smallest N it ran (N = 1 where swept; h531: the column was empty without it), both None without the TThru,
+    ``idle`` the row's ``idle.<pm>`` as written. What
     cannot be drawn is said in ``notes``.
     """
     name = sw.label  # (as the report names the sweep: a/sw and b/sw for two folders named sw)
@@ -332,10 +333,12 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
             notes.append(f"{name}: {scene}/{mode}: no idle figure: one value of N only")
             continue
         pts.sort(key=lambda p: (_scheduler_order(p["scheduler"]), p["pipelines"]))
-        one = {p["scheduler"]: p["throughput"] for p in pts if p["pipelines"] == 1}
+        first = {}  # (each scheduler's smallest N, the one its speed-up is measured against: pts are by N)
         for p in pts:
-            t1, t = one.get(p["scheduler"]), p["throughput"]
-            p["speedup"] = t1 / t if t1 and t else None
+            first.setdefault(p["scheduler"], p)
+        for p in pts:
+            t1, t = first[p["scheduler"]]["throughput"], p["throughput"]
+            p["speedup"], p["base"] = (t1 / t, first[p["scheduler"]]["pipelines"]) if t1 and t else (None, None)
         out[key] = {"pms": pms, "points": pts, "values": {k: factors[id(pts[0])].get(k) for k in others}}
     return out
 
@@ -398,8 +401,11 @@ def _left(yes: bool) -> str:
 
 
 def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
-    """N, scheduler, TThru, speed-up and the idle fraction of each PM, by N then scheduler."""
-    head = ["N", "scheduler", "TThru (M cycles)", "speed-up", *(f"idle {p}" for p in pms)]
+    """N, scheduler, TThru, speed-up and the idle fraction of each PM, by N then scheduler; the speed-up's
+    head names the N it is measured against where that is not 1 (:func:`speedup_base`)."""
+    base = speedup_base(points)
+    over = "" if base in ("1", "") else f" over N = {base}" if base.isdigit() else " over the smallest N"
+    head = ["N", "scheduler", "TThru (M cycles)", f"speed-up{over}", *(f"idle {p}" for p in pms)]
     rows = sorted(points, key=lambda p: (p["pipelines"], _scheduler_order(p["scheduler"])))
     out = [f"<details><summary>{esc(title)}</summary>",
            "<table><tr>" + "".join(f"<th{_left(h == 'scheduler')}>{esc(h)}</th>" for h in head) + "</tr>"]
@@ -412,6 +418,13 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
         out.append("<tr>" + "".join(f"<td{_left(k == 1)}>{esc(c)}</td>" for k, c in enumerate(cells)) + "</tr>")
     out.append("</table></details>")
     return "\n".join(out)
+
+
+def speedup_base(points: list[dict]) -> str:
+    """The N the points' speed-ups are measured against (:func:`idle_points`' ``base``): one N (``4``), else
+    "each scheduler's smallest N"; "" where no point has a speed-up."""
+    bases = {p.get("base") for p in points if p.get("speedup") is not None}
+    return "" if not bases else str(next(iter(bases))) if len(bases) == 1 else "each scheduler's smallest N"
 
 
 def fitted_sweeps(inputs: Inputs, current: bool = True) -> dict[Path, str]:
@@ -640,7 +653,9 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
                                           "(one Vertex PM, pipeline 0's); the row's idle.<pm>. Solid, filled "
                                           "markers: static tiling; dashed, open markers: the dynamic scheduler."
                                           + bounded))
-                tables.append(idle_table(f"{label} ({sw.label}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
+                base = speedup_base(g["points"])  # (the smallest N swept: N = 1 where it was, h531)
+                ratio = f"TThru({base}) / TThru(N)" if base.isdigit() else "TThru(N0) / TThru(N) (N0 its smallest N)"
+                tables.append(idle_table(f"{label} ({sw.label}): N, scheduler, TThru, speed-up {ratio} "
                                          "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
     sec.html = "\n".join(tables)
     if not sec.figures:

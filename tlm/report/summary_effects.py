@@ -10,6 +10,8 @@ said as "any" (:func:`_span`); and per sweep whose points measured their image e
 most (:func:`error_factor`, said under "What quality costs"). The k-NN reference's points (``estimate.filter:
 knn`` in photon-map mode) are ranked by frame rate nowhere, their search not modelled (:func:`_ranked_points`, as
 the error-vs-cost report);
+errors measured against different references (a factor of the reference's key: ``photons.max_bounces``, one reference
+per value) are compared nowhere, said so (:func:`_apart`, :func:`_keyed`: h531);
 a factor's values are written as YAML writes them (``cone``, not ``'cone'``: :func:`_as_yaml`).
 """
 
@@ -107,6 +109,39 @@ def _cycles_moved(ok: list[dict], k: str, held: list[str]) -> tuple[str, float] 
 def _measured(rows: list[dict]) -> list[dict]:
     """The rows that measured their image error (a number in :data:`ERROR`)."""
     return [r for r in rows if _number(r.get(ERROR))]
+
+
+def _references(sw: Sweep, rows: list[dict]) -> dict[int, str]:
+    """The reference each of ``rows`` that measured its image error measured it against, by the row's id: its
+    ``results.json``'s ``error.reference``, the reference's key (sweep.csv has no column of it); a row whose
+    results folder names none is left out (its error compared as before)."""
+    out = {}
+    for r in _measured(rows):
+        run = sw.run_of(r)
+        error = run.results.get("error") if run is not None else None
+        if isinstance(error, dict) and isinstance(error.get("reference"), str) and error["reference"]:
+            out[id(r)] = error["reference"]
+    return out
+
+
+def _apart(rows: list[dict], k: str, held: list[str], refs: dict[int, str]) -> bool:
+    """Whether ``k``'s values are measured against different references (``refs``: :func:`_references`): some
+    combination of the factors ``held`` whose rows name more than one (``k`` is part of the reference's key, or a
+    factor that moves with it is), so that its effect on the image error compares errors that are not comparable."""
+    seen: dict[tuple, set[str]] = defaultdict(set)
+    for r in rows:
+        if id(r) in refs:
+            seen[tuple(repr(r.get(j)) for j in held)].add(refs[id(r)])
+    return any(len(v) > 1 for v in seen.values())
+
+
+def _keyed(keys: list[str], refs: dict[int, str]) -> str:
+    """Why the image errors of a sweep's points against ``refs``' several references are not compared, in one
+    clause (escaped): the factors ``keys`` that change the reference (:func:`_apart`), where known."""
+    why = (f", {esc(_and(keys))} being part of the reference's key" if len(keys) == 1 else
+           f", {esc(_and(keys))} being parts of the reference's key" if keys else "")
+    return (f"the points measured it against {len(set(refs.values()))} references (results.json error.reference)"
+            f"{why}, and errors against different references are not comparable")
 
 
 def _error_range(k: str, eff: dict, most: bool = False) -> str:
@@ -208,7 +243,7 @@ def _values(tied: list[str], of: int) -> str:
     return f"{len(tied)} of its {of} values, tied: {esc(some(tied))}"
 
 
-def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str = "") -> str:
+def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str = "", word: str = "best") -> str:
     """The point of the highest frame rate in words; where points that differ in more than the
     factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
     the least image error where each of them measured it (the text says so where that error tells them apart;
@@ -222,7 +257,8 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     no point measured its image error or it has the lowest error of all (said so where not said as
     the least of the tied); else "the fastest point", with its error, and the point of the lowest
     error after it (:func:`_lowest`): a faster point of a larger error is not the best of all. ``of`` follows
-    "the lowest image error" (`` of the points ranked``: the k-NN reference's left out, :func:`_ranked_points`)."""
+    "the lowest image error" (`` of the points ranked``: the k-NN reference's left out, :func:`_ranked_points`);
+    ``word`` is what a point is where no error ranks it ("fastest" where errors are not comparable: h531)."""
     top = max(r["fps"] for r in rows)
     at_top = [r for r in rows if same_value(r["fps"], top)]
     near = [r for r in rows if r["fps"] >= top * (1 - NEAR_TIE) or same_value(r["fps"], top)]
@@ -250,7 +286,7 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     lowest = min(errs) if errs else None
     fastest = lowest is not None and not all(_number(r.get(ERROR)) and same_value(float(r[ERROR]), lowest)
                                              for r in firsts)
-    word = "fastest" if fastest else "best"
+    word = "fastest" if fastest else word
     where = [_where(r, factors) for r in firsts]
     r = firsts[0]
     one = all(_number(x.get(ERROR)) and same_value(float(x[ERROR]), float(r[ERROR])) for x in firsts)  # (one error)
@@ -349,7 +385,8 @@ def _said(groups: list[list[dict]], rows: list[dict], factors: list[str], after:
 KNN_APART = "the k-NN reference's frame rate is not ranked, its search not modelled"
 
 
-def _ranked_points(rows: list[dict], out: list[bool | None], factors: list[str], inert: list[str]) -> str:
+def _ranked_points(rows: list[dict], out: list[bool | None], factors: list[str], inert: list[str],
+                   word: str = "best") -> str:
     """:func:`_best_points` of the ``rows`` whose frame rate is their cost: not those of the k-NN reference
     (``out``: :func:`_unranked`), whose simulated frame time leaves out its search, as the error-vs-cost
     report ranks it by that time nowhere (:func:`~tlm.report.tradeoff.unmodelled_cost`); they are said to be
@@ -358,13 +395,13 @@ def _ranked_points(rows: list[dict], out: list[bool | None], factors: list[str],
     ranked = [r for r, o in zip(rows, out, strict=True) if not o]
     knn = "estimate.filter = knn" + (" in mode pmap" if None in out else "")
     if not any(out):
-        return _best_points(rows, factors, inert)
+        return _best_points(rows, factors, inert, word=word)
     n = out.count(True)
     errs = [float(r[ERROR]) for r, o in zip(rows, out, strict=True) if o and _number(r.get(ERROR))]
     err = (f"relative MSE {min(errs):.3g}" if n == 1 else f"the lowest relative MSE {min(errs):.3g}") if errs else ""
     if not ranked:
         return f"{KNN_APART}: every point is of {knn}{f' ({err})' if err else ''}."
-    said = _best_points(ranked, factors, inert, " of the points ranked").removesuffix(".")
+    said = _best_points(ranked, factors, inert, " of the points ranked", word).removesuffix(".")
     points = "the point" if n == 1 else f"the {n} points"
     return f"{said}; {KNN_APART} ({points} of {knn}{', ' * bool(err)}{err})."
 
@@ -441,13 +478,19 @@ def error_factor(inputs: Inputs) -> str:
         every = named_rows(sw)
         rows = _measured([r for r in every if r.get("status") == "ok"])
         factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
-        spread = {}
+        spread, refs, keyed = {}, _references(sw, rows), []
         for k in factors:
             along = _moves_with(every, k, factors)
-            eff = _effect(rows, k, [j for j in factors if j != k and j not in along], ERROR)
+            held = [j for j in factors if j != k and j not in along]
+            if _apart(rows, k, held, refs):  # (each value's error against its own reference: not compared, h531)
+                keyed.append(k)
+                continue
+            eff = _effect(rows, k, held, ERROR)
             means = (eff or {}).get("values")
             if means and min(means.values()) > 0 and not same_value(max(means.values()), min(means.values())):
                 spread[k] = (max(means.values()) / min(means.values()), eff, along)
+        if keyed:
+            said += f" In {esc(sw.label)}, no image error is compared across {esc(_and(keyed))}: {_keyed(keyed, refs)}."
         if not spread:
             continue
         k = max(spread, key=lambda f: spread[f][0])
@@ -487,8 +530,10 @@ def sweep_findings(inputs: Inputs) -> list[str]:
         factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
         if not rows or not factors:
             continue
-        spread, nothing, apart, along, left, errs, unjudged, kept = {}, [], [], {}, {}, [], [], []
+        spread, nothing, apart, along, left, errs, unjudged, kept, keyed = {}, [], [], {}, {}, [], [], [], []
         measured = _measured(rows)  # (a factor that keeps the frame rate may still change the image error)
+        refs = _references(sw, measured)  # (errors against different references are not compared: h531)
+        kept_ref: list[str] = []  # (those of them that keep the frame rate)
         unranked = _unranked(sw, rows)  # (the k-NN reference's points: no factor's frame rate is ranked by them)
         ranked = [r for r, u in zip(rows, unranked, strict=True) if not u]
         for k in factors:
@@ -498,9 +543,13 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             if eff is None:
                 continue
             means = eff["values"]
-            err = _effect(measured, k, held, ERROR) if eff["same"] and measured else None
+            if _apart(measured, k, held, refs):
+                keyed.append(k)
+            err = _effect(measured, k, held, ERROR) if eff["same"] and measured and k not in keyed else None
             if eff["same"] and measured and not (err or {}).get("same"):
-                if err is not None and err["compared"]:
+                if k in keyed:
+                    kept_ref.append(k)
+                elif err is not None and err["compared"]:
                     span = _error_range(k, err)
                     errs.append(f"{esc(k)} changes the image error{f' ({span})' if span else ''}, not the frame rate, "
                                 f"between points that differ only in it")
@@ -520,7 +569,11 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                 top, bottom = max(means.values()), min(means.values())
                 spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom), len(means))
                 left[k] = len(ranked) - eff["used"]
-        best = _ranked_points(rows, unranked, factors, nothing)
+        several = len(set(refs.values())) > 1  # (the errors rank no point: each measured against its own reference)
+        best = _ranked_points([{**r, ERROR: None} for r in rows] if several else rows, unranked, factors, nothing,
+                              "fastest" if several else "best")
+        if several:
+            best = f"{best.removesuffix('.')}; no point is ranked by its image error: {_keyed(keyed, refs)}."
         text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
                 f"{', ' + esc(with_set(sw.overrides)) if sw.overrides else ''}{esc(sw.unfinished)}): ")
         notes = ""
@@ -538,6 +591,9 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             notes += (f"{esc(', '.join(unjudged))} {'does' if len(unjudged) == 1 else 'do'} not change the frame rate "
                       f"between points that differ only in {'it' if len(unjudged) == 1 else 'them'} (the image error "
                       f"not measured at such points); ")
+        if kept_ref and len({r["fps"] for r in rows}) > 1:  # (its errors apart: the closing clause says why)
+            notes += (f"{esc(', '.join(kept_ref))} {'does' if len(kept_ref) == 1 else 'do'} not change the frame rate "
+                      f"between points that differ only in {'it' if len(kept_ref) == 1 else 'them'}; ")
         if apart:
             notes += (f"{esc(', '.join(apart))} cannot be compared like with like (no values of the other factors "
                       f"finished with each of {'its' if len(apart) == 1 else 'their'} values); ")
@@ -558,7 +614,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
                      f"ok points{' ranked' * any(unranked)} left out for that); ")
             text += notes + best
-        elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
+        elif len({r["fps"] for r in rows}) == 1 and not errs and not kept_ref:  # (a tie everywhere: no best point)
             low = [float(r[ERROR]) for r in measured]
             alike = bool(low) and all(same_value(e, low[0]) for e in low)  # (nor the image error: said so)
             said = ("" if not alike else f" with a relative MSE of {low[0]:.3g}" if len(low) == len(rows) else

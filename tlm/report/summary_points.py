@@ -7,10 +7,12 @@ references counted by :func:`references`).
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 
 import numpy as np
 
+from tlm.arch.steady import STEADY_SPREAD
 from tlm.config_words import listing
 from tlm.report.collect import Inputs, Run
 from tlm.report.html import esc
@@ -43,10 +45,18 @@ def fps_of_points(inputs: Inputs) -> str:
     if not points:
         return "No run, thesis study or finished sweep point among the inputs: no frame rate to show."
     lo, hi = min(points, key=lambda r: r.results["fps"]), max(points, key=lambda r: r.results["fps"])
-    rng = (f"{lo.results['fps']:.3g} FPS" if lo is hi else
-           f"from {lo.results['fps']:.3g} FPS ({esc(lo.label)}) to {hi.results['fps']:.3g} FPS ({esc(hi.label)})")
+    low, high = lo.results["fps"], hi.results["fps"]
+    # (rates that print alike said apart, to as many figures as part them, and said to tie within the 1% rule's
+    # tolerance where they do: h531's "from 27.6 FPS (#0) to 27.6 FPS (#1)")
+    d = 3 if math.isclose(low, high, rel_tol=1e-9) else next(
+        (d for d in range(3, 10) if f"{low:.{d}g}" != f"{high:.{d}g}"), 10)
+    tie = (f", within {STEADY_SPREAD:.0%} of each other (a tie, as for points within {STEADY_SPREAD:.0%} of the "
+           "best)" if low >= high * (1 - STEADY_SPREAD) else "")
+    rng = (f"at {low:.3g} FPS" if lo is hi or math.isclose(low, high, rel_tol=1e-9) else
+           f"from {low:.{d}g} FPS ({esc(lo.label)}) to {high:.{d}g} FPS ({esc(hi.label)}){tie}")
     return (f"<b>How fast:</b> no run or thesis study among the inputs to draw per scene and mode; the "
-            f"{count(len(points), 'sweep point')} run {rng} (§4 draws them against each factor).")
+            f"{count(len(points), 'sweep point')} run{'s' * (len(points) == 1)} {rng} (§4 draws them against each "
+            "factor).")
 
 
 # what a "busy" share of the sweep points' bottleneck is (HTML: no angle brackets): not sweep.csv's busy.<pm>, the

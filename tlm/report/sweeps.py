@@ -1,10 +1,10 @@
 """Section: what each sweep varied and what it did to the frame rate.
 
 Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slowest
-PM, host seconds less their one-off part, numba compiling and first imports, said in a note
-under it, and where they were measured: the host and Dask worker that ran the points, said once where one
-ran them all, else a column, :func:`~tlm.report.provenance.ran_note`; a failed point with its error)
-and one figure per varied factor:
+PM, whether it reused a render where one did (its host s then time none), host seconds less their one-off
+part, numba compiling and first imports, said in a note under it, and where they were measured: the host and
+Dask worker that ran the points, said once where one ran them all, else a column,
+:func:`~tlm.report.provenance.ran_note`; a failed point with its error) and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
 factors. Combinations that draw the same line are drawn once, one label naming them all,
 and the lines are counted after that: up to :data:`MAX_SERIES` distinct lines are drawn
@@ -83,6 +83,7 @@ LEVELS_SIZE = (13.0, 4.8)  # inches, the BSP-levels figure without its legend
 
 # a sweep row's image error against the point's reference (sweep.csv), and its column's head in the points table
 ERROR_COLUMNS = {"error.rel_mse": "relative MSE", "error.rmse": "RMSE"}
+REUSED = "reused"  # a point's "render" cell where it reused a render (sweep.csv functional_cached): none timed
 
 
 def _finite(v: Any) -> bool:
@@ -146,8 +147,12 @@ def table(sw: Sweep) -> str:
     # (who ran each point, the host and the Dask worker: a column only where more than one did, else said once)
     whos = [ran_by(r) for r in rows]
     ran = len({w for w in whos if w is not None}) > 1
+    # (whether each point rendered its frame or reused one, a column where one reused it: its host s are then not a
+    # faster host's, h531)
+    reused = any(r.get("functional_cached") is True for r in rows if r.get("status") == "ok")
     head = ["point", *factors, "status", "FPS", "TThru (M cycles)", *(["Ttrav / Tisct"] if ratio else []),
-            *(ERROR_COLUMNS[k] for k in errs), "slowest PM", "host s", *(["ran on"] if ran else [])]
+            *(ERROR_COLUMNS[k] for k in errs), "slowest PM", *(["render"] if reused else []), "host s",
+            *(["ran on"] if ran else [])]
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     # each column's numbers in one notation (column_texts): a factor's values, FPS, TThru, host seconds
     shown = rows[:MAX_ROWS]
@@ -164,10 +169,13 @@ def table(sw: Sweep) -> str:
     for i, r in enumerate(shown):
         if r.get("status") == "ok":
             slow = max(PMS, key=lambda p: r.get(f"cycles.{p}") or 0)
-            cells = [fps[k], thru[k], *([_ratio_text(r)] if ratio else []), *(err[e][k] for e in errs), slow, host[k]]
+            render = [REUSED if r.get("functional_cached") is True else "done"] if reused else []
+            cells = [fps[k], thru[k], *([_ratio_text(r)] if ratio else []), *(err[e][k] for e in errs), slow,
+                     *render, host[k]]
             k += 1
         else:
-            cells = [f"failed: {r.get('error')}", "", *([""] if ratio else []), *("" for _ in errs), "", ""]
+            cells = [f"failed: {r.get('error')}", "", *([""] if ratio else []), *("" for _ in errs), "",
+                     *([""] if reused else []), ""]
         vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells,
                 *([ran_label(whos[i])] if ran else [])]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
@@ -182,6 +190,10 @@ def table(sw: Sweep) -> str:
                    "loading kernels "
                    "and modules imported for the first time, paid by whichever points each worker ran first, not "
                    f"by their settings ({esc(where)}).</p>")
+    if reused:  # (not a faster host: no render to do)
+        out.append(f'<p class="note">render {REUSED}: the point took its frame from the functional cache, rendered '
+                   "before by another point or run (sweep.csv functional_cached), and its host s leave out that "
+                   "render's seconds (§9 gives them).</p>")
     if (where := ran_note(whos)) is not None:  # (host s are that machine's: sweep.csv's worker and host)
         out.append(f'<p class="note">{esc(where)}.</p>')
     if len(rows) > MAX_ROWS:
