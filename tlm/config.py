@@ -190,7 +190,8 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
             # (YAML's 1:, true:, null: as written, not Python's True, None; a date as it reads, 2026-01-01)
             name = value_text(key) if isinstance(key, (bool, int, float, type(None))) else str(key)
             where = f"{prefix}.{name}" if prefix else name
-            raise InputError(f"unknown key{did_you_mean(name, fields)}", source=source, key=where)
+            hint = _placed_elsewhere(name, prefix) or did_you_mean(name, fields)
+            raise InputError(f"unknown key{hint}", source=source, key=where)
     values = {}
     for name, f in fields.items():
         v = _field(f, hints[name], raw, source, f"{prefix}.{name}" if prefix else name)
@@ -200,6 +201,17 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
     _across(out, source, prefix)
     out.__dict__[_CHECKED] = True  # (checked whole: checked() takes it as it is)
     return out
+
+
+def _placed_elsewhere(name: str, prefix: str) -> str:
+    """`` (did you mean 'resolution'?)`` where ``name``, an unknown key of the section ``prefix`` (``""``: the top
+    level), is a key of another section or of the top level, by its last part, those nearer the top first
+    (``--set render.resolution=...``: the top-level ``resolution``; ``arch.spp``: ``'render.spp' or
+    'reference.spp'``); else ``""``, for a hint among the section's own keys (h536: such a key was said
+    unknown with no hint, and a top-level ``spp`` was asked whether it meant ``'bsp'``)."""
+    keys = sorted((k for k in (*(k for k, _, _ in describe()), *sorted(SECTIONS))
+                   if k.rpartition(".")[2] == name and k.rpartition(".")[0] != prefix), key=lambda k: k.count("."))
+    return f" (did you mean {' or '.join(repr(k) for k in keys[:3])}?)" if keys else ""
 
 
 def _across(out: Any, source: str, prefix: str) -> None:

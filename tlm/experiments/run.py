@@ -84,7 +84,8 @@ def parse_outputs(text: str) -> tuple[str, ...]:
     names = [n.strip() for n in str(text).split(",") if n.strip()]
     bad = [n for n in names if n not in (*OUTPUTS, "images")]
     if bad or not names:
-        raise InputError(f"{text!r}: expected a comma-separated list of {', '.join(('images', *OUTPUTS))}"
+        part = f"; {', '.join(map(repr, bad))} {'are' if bad[1:] else 'is'} none of them" if names[1:] else ""
+        raise InputError(f"{text!r}: expected a comma-separated list of {', '.join(('images', *OUTPUTS))}{part}"
                          + (did_you_mean(bad[0], ("images", *OUTPUTS)) if bad else ""), key="--outputs")
     return tuple(n for n in OUTPUTS if n in names)
 
