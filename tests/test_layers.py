@@ -46,7 +46,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.report.written",  # (h477: which files of a run folder its run wrote, the report's only reads)
      "tlm.report.summary_studies",  # (h487: the summary's words on the studies, no figure, out of summary)
      "tlm.report.tradeoff_studies",  # (h487: what the tradeoff section reads of a study, no figure, out of tradeoff)
-     "tlm.report.study_tables"),  # (h501: a study folder's tables read and checked, out of collect)
+     "tlm.report.study_tables",  # (h501: a study folder's tables read and checked, out of collect)
+     "tlm.report.compare"),  # (h530: runs of one scene-mode compared, B/A, and what differs, out of summary)
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
      "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)

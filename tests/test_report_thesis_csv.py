@@ -120,5 +120,6 @@ def test_how_fast_says_the_pipelines_of_its_runs(tmp_path):
 def test_a_second_run_of_a_scene_mode_is_said_not_dropped(tmp_path):
     runs = [_run("ring", "rcast", 40.0, 1), _run("ring", "rcast", 90.0, 4)]
     lead = summary_section(Inputs([], runs=runs), tmp_path).lead
-    assert "<b>How fast:</b> 40 FPS (ring RCast, 1 pipeline)." in lead  # (one cell: its value said once)
-    assert "The other run among the inputs, not in the figure: ring/rcast/4 90 FPS (4 pipelines)." in lead
+    # (h530: two runs of one scene-mode are compared, both drawn, the second said against the first)
+    assert "<b>How fast:</b> from 40 FPS (ring/rcast/1 RCast) to 90 FPS (ring/rcast/4 RCast)." in lead
+    assert "<b>ring/rcast/4 against ring/rcast/1</b> (B/A): frame rate 2.25x (40 → 90 FPS)." in lead

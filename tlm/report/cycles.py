@@ -39,6 +39,7 @@ from tlm.arch.fifo import fifo_held
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, count, new_figure, save, some
+from tlm.report.compare import groups
 from tlm.report.names import value_text
 from tlm.report.written import kept
 
@@ -207,11 +208,14 @@ def breakdown(run: Run, few: int = FEW_PIPELINES) -> Breakdown:
                      _throughput(run), aggregate)
 
 
-def breakdown_figure(run: Run, out: Path, name: str | FigureName):
+def breakdown_figure(run: Run, out: Path, name: str | FigureName, ceiling: float | None = None):
+    """The eq. 5.1 breakdown of ``run``; ``ceiling``: the most cycles of the runs it is compared with (runs of
+    one scene-mode, :mod:`tlm.report.compare`), drawn on that one scale, said so."""
     bd = breakdown(run)
     if not bd.labels:
         return None
     top = float(bd.elapsed.max()) if bd.elapsed.size else 0.0
+    top = max(top, ceiling) if ceiling is not None else top
     scale, unit = cycles_unit(top)
     fig = new_figure(max(6.5, 1.0 * len(bd.labels) + 4.0), 4.8)
     ax = fig.subplots()
@@ -241,6 +245,8 @@ def breakdown_figure(run: Run, out: Path, name: str | FigureName):
     if empty:
         caption += f" No cycles (not drawn): {', '.join(SEGMENT_LABELS[s] for s in empty)}."
     caption += fifo_caption(run.results["timing"].get("fifo"))
+    if ceiling is not None:
+        caption += " On one y scale with the other runs of its scene-mode (compared in the summary)."
     return save(fig, out, name, f"{run.title}: where the cycles go (eq. 5.1)", _point(run) + caption)
 
 
@@ -542,6 +548,25 @@ def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
 
 # -- the section -----------------------------------------------------------------------------
 
+def _ceilings(runs: list[Run], inputs: Inputs) -> dict[int, float]:
+    """The runs drawn of each scene-mode run more than once (:func:`tlm.report.compare.groups`): each run's (by
+    its ``id``) one ceiling, the most cycles of any of them, so that their breakdowns share one y scale."""
+    out: dict[int, float] = {}
+    drawn = {id(r) for r in runs}
+    for g in groups(inputs):
+        tops = []
+        for r in (r for r in g if id(r) in drawn):
+            try:
+                bd = breakdown(r)
+            except (KeyError, TypeError, ValueError):  # (its figure's note says why)
+                continue
+            if bd.labels:
+                tops.append((id(r), max(float(bd.elapsed.max()), bd.throughput)))
+        if len(tops) > 1:
+            out.update({i: max(t for _, t in tops) for i, _ in tops})
+    return out
+
+
 def cycles_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("cycles", "Where the cycles go")
     if not inputs.runs:
@@ -554,10 +579,12 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
     if not runs:
         sec.absent = "none of the runs has timing results"
         return sec
+    ceilings = _ceilings(runs, inputs)
     for i, run in enumerate(runs):
         slug = ("cycles", f"{i:02d}", run.label)  # (cycles_00_<label>_breakdown.png)
         try:
-            fig = breakdown_figure(run, out, FigureName((*slug, "breakdown"), "\n".join((*slug, "breakdown"))))
+            fig = breakdown_figure(run, out, FigureName((*slug, "breakdown"), "\n".join((*slug, "breakdown"))),
+                                   ceilings.get(id(run)))
         except (KeyError, TypeError, ValueError) as e:
             sec.notes.append(f"{run.label}: its timing results lack the eq. 5.1 terms ({type(e).__name__}: {e}); "
                              f"no breakdown.")

@@ -22,6 +22,7 @@ from pathlib import Path
 from tlm.config_words import dump_yaml, listing
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section, count, some
+from tlm.report.compare import differs_html
 from tlm.report.html import esc
 from tlm.report.names import digest_notes, same_file, scene_digest, shown_paths
 
@@ -331,6 +332,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     else:
         cases = inputs.unread_cases()
         parts.append(f"<p>No run among the inputs{'; ' + esc(cases) if cases else ''}.</p>")
+    parts += differs_html(inputs)  # (runs compared: what differs between them, not two whole configs alone)
     parts += scene_tables(inputs.runs)  # (each scene's materials and lights, as the runs read them)
     sec.notes += digest_notes(inputs.runs)  # (one scene file of other contents in two runs)
     for run in inputs.runs[:MAX_CONFIGS]:

@@ -4,7 +4,9 @@ Four questions, each answered from whatever the inputs hold (and saying so when 
 hold nothing for it):
 
 1. How fast? Frames per second per scene and mode, ours beside the thesis's (Tables I–III):
-   the thesis study's frames when there is one (the other runs' frame rates in words).
+   the thesis study's frames when there is one (the other runs' frame rates in words). Runs of one
+   scene-mode given more than once: a bar each, in the order given, and B/A against the first in words
+   (:mod:`tlm.report.compare`); the bottleneck figure then has a row per run.
 2. What limits it? The bottleneck PM of each scene-mode and its utilisation (busy share
    of the elapsed cycles; with N pipelines a PM's busiest pipeline's, as its ``cycles.<pm>``
    is its slowest pipeline's), and whether the thesis names the same PM.
@@ -38,6 +40,9 @@ from tlm.config import ArchConfig
 from tlm.experiments.thesis import THESIS_SCENES, median_words, slowest_words
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save, some
+from tlm.report.compare import compare_lines
+from tlm.report.compare import groups as compare_groups
+from tlm.report.compare import short as compared_name
 from tlm.report.html import esc
 from tlm.report.summary_effects import error_factor, sweep_findings
 from tlm.report.summary_points import (
@@ -84,6 +89,9 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     thesis = inputs.of_kind("thesis")
     others: list = []  # the runs with a frame rate that the figure does not draw
     pipes: dict[tuple, int] = {}  # (scene, mode) drawn -> its pipelines
+    twice: set[tuple] = set()  # (the scene-modes of runs compared: tlm.report.compare)
+    drawn: dict[tuple, Run] = {}  # (a run's bar's key -> the run, where runs are drawn)
+    compared: set[tuple] = set()  # (their bars' keys)
     fast = [r for r in inputs.runs if r.kind == "run" and isinstance(r.results.get("fps"), int | float)
             and not isinstance(r.results.get("fps"), bool) and r.results["fps"] > 0]
     if thesis:
@@ -98,12 +106,14 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         pipes = {(named[s], m): n for (s, m), n in pipes.items()}
         others = sorted(fast, key=lambda r: r.results["fps"])
     else:
-        ours, drawn = {}, {}
-        for r in fast:  # (a second run of a scene-mode has no bar of its own: it is said in the text)
-            if (r.scene_label, r.mode) in drawn:
-                others.append(r)
-            else:
-                drawn[(r.scene_label, r.mode)] = r
+        ours = {}
+        twice = {(r.scene_label, r.mode) for g in compare_groups(inputs) for r in g}
+        for r in fast:  # (a scene-mode run more than once: a bar per run, named by its folder, in the order given)
+            k = (compared_name(r) if (r.scene_label, r.mode) in twice else r.scene_label, r.mode)
+            k = k if k not in drawn else (r.label, r.mode)
+            drawn[k] = r
+            if (r.scene_label, r.mode) in twice:
+                compared.add(k)
         ours = {k: r.results["fps"] for k, r in drawn.items()}
         pipes = {k: _pipelines(r) for k, r in drawn.items()}
         others.sort(key=lambda r: r.results["fps"])
@@ -111,7 +121,8 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
     if not ours:
         return fps_of_points(inputs), None
-    scenes = sorted({s for s, _ in ours}, key=_scene_order)
+    scenes = sorted({s for s, _ in ours}, key=_scene_order) if thesis or not twice else \
+        list(dict.fromkeys(s for s, _ in ours))  # (runs compared: in the order given, the baseline first)
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
     drawn_modes = [m for m in MODES if any((s, m) in ours for s in scenes)]  # (the legend names the bars drawn)
@@ -129,8 +140,18 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             ax.plot([x for x, _ in at], [t for _, t in at], "k_", markersize=11, markeredgewidth=2,
                     label=None if ticks else "thesis")
             ticks += len(at)
+    base = {(g[0].scene_label, g[0].mode): g[0] for g in compare_groups(inputs)} if compared else {}
+    for k in compared:  # (a run compared: its frame rate on its bar, and B/A against its scene-mode's first)
+        r, x = drawn[k], scenes.index(k[0]) + (drawn_modes.index(k[1]) - (len(drawn_modes) - 1) / 2) * width
+        first = base.get((r.scene_label, r.mode))
+        a = first.results.get("fps") if first is not None else None
+        ratio = "\nA" if first is r else f"\n{ours[k] / a:.3g}x" if _number(a) and a > 0 else ""
+        ax.annotate(f"{ours[k]:.3g}{ratio}", (x, ours[k]), ha="center", va="bottom", fontsize=7,
+                    xytext=(0, 2), textcoords="offset points")
     ax.set_xticks(range(len(scenes)), scenes)
     ax.set_yscale("log")
+    if compared:  # (each bar tall enough to see against the others, its label room above the highest)
+        ax.set_ylim(min(ours.values()) / 3, max(ours.values()) * 2)
     ax.set_ylabel("frames per second")
     ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, 1.18), frameon=False)
     which = (f"the thesis study {thesis[0].path.name}" + (f" (the first of {len(thesis)})" if len(thesis) > 1 else "")
@@ -139,6 +160,8 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
              (f"bars: ours, the frames of {which}, at the simulated clock" if thesis
               else "bars: ours at the simulated clock")
              + ("; black ticks edged in white: the thesis's Tables I–III" if ticks else "")
+             + ("; a scene-mode run more than once: a bar per run, in the order given, each labelled with its frame "
+                "rate and B/A against the first (A)" if compared else "")
              + (f"; {_count(len(others), 'other run')} among the inputs not drawn ("
                 + ("its frame rate is" if len(others) == 1 else "their frame rates are") + " in the text)"
                 if others else ""))
@@ -147,8 +170,9 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     every = {*(pipes.get(k) for k in ours), *(_pipelines(r) for r in others)}
     one = len(every) == 1  # (every frame rate said at the same count: said once, at the end)
 
-    def cell(k: tuple) -> str:
-        return f"{esc(str(k[0]))} {MODE_NAMES.get(k[1], k[1])}{'' if one else ', ' + _count(pipes[k], 'pipeline')}"
+    def cell(k: tuple) -> str:  # (a run compared: what differs is its comparison's line, not its pipelines alone)
+        return (f"{esc(str(k[0]))} {MODE_NAMES.get(k[1], k[1])}"
+                f"{'' if one or k in compared else ', ' + _count(pipes[k], 'pipeline')}")
 
     n_one = next(iter(every)) if one else None
     alike = f"{ours[worst]:.3g}" == f"{ours[best]:.3g}"  # (every cell at one rate as said: each named, not one twice)
@@ -192,19 +216,26 @@ def _scene_order(label: str) -> tuple:
 def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     cells: dict[tuple[str, str], dict[str, float]] = {}
     cell_of: dict[tuple[str, str], str] = {}  # a cell of the thesis's scenes: its key in the study's summary
+    twice = {(r.scene_label, r.mode) for g in compare_groups(inputs) for r in g}  # (a row per run compared)
     for r in inputs.runs:
-        if r.kind != "thesis" and not (r.kind == "run" and (r.scene_label, r.mode) not in cells):
+        key = (r.scene_label, r.mode)
+        if r.kind == "run" and key in twice:
+            key = (f"{r.scene_label} ({compared_name(r)})", r.mode)
+        if r.kind != "thesis" and not (r.kind == "run" and key not in cells):
             continue
         busy = busy_shares(r.results)  # (each PM's busiest pipeline's, as its cycles.<pm> and slowest_pm)
         if busy is not None:
-            cells[(r.scene_label, r.mode)] = busy
+            cells[key] = busy
             if thesis_table(r) == r.scene:  # (the thesis's scene by its file, as the tables say)
-                cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
+                cell_of[key] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
     if not cells:
         return bottleneck_of_points(inputs), None
     thesis = inputs.of_kind("thesis")
     slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
     keys = sorted(cells, key=lambda k: (_scene_order(k[0]), MODES.index(k[1]) if k[1] in MODES else 9))
+    if twice and not thesis:  # (runs compared: in the order given, the baseline first)
+        keys = list(cells)
+    rows = "runs" if twice else "scene-modes"
     grid = np.array([[cells[k][pm] for pm in PMS] for k in keys])
     fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
     ax = fig.add_subplot()
@@ -238,11 +269,11 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                f"{high}% of the time."
     elif len(top) == 1:
         text = (f"<b>What limits it:</b> the {PM_METRIC[top[0]]} PM is the bottleneck in {most} of {len(keys)} "
-                f"scene-modes, {busy} of the time.")
+                f"{rows}, {busy} of the time.")
     else:
         names = _and([PM_METRIC[pm] for pm in top])
         text = (f"<b>What limits it:</b> no one PM: each of {names} is the bottleneck in {most} of {len(keys)} "
-                f"scene-modes, {busy} of the time there.")
+                f"{rows}, {busy} of the time there.")
     if slowest:
         m = sum(v["match"] for v in slowest.values())
         words = slowest_words({"scene_modes": len(slowest), "slowest_pm_matches": m, **thesis[0].meta})
@@ -521,6 +552,8 @@ def summary_section(inputs: Inputs, out: Path) -> Section:
     for q in (_fps, _bottleneck, _scaling, _tradeoff):
         text, fig = q(inputs, out)
         texts.append(text)
+        if q is _fps:  # (runs of one scene-mode compared, B/A: after how fast they are)
+            texts += compare_lines(inputs)
         if fig is not None:
             figs.append(fig)
     found = sweep_findings(inputs) + study_findings(inputs)
