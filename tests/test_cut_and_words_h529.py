@@ -4,7 +4,7 @@ the API's words.
 * The share's denominator was all the power the global group emitted: in an open scene most of a directional
   light's disc (which covers the scene's bounding sphere) or a point light's cone misses the scene at once, so the
   share of the light cut at ``photons.max_bounces`` was understated (an open well of albedo 0.8 under a directional
-  light: 2.3% said, under the warning's 5%, for 10.7% of the light that entered it). Now the power of the photons
+  light: 2.2% said, under the warning's 5%, for 10.7% of the light that entered it). Now the power of the photons
   whose first ray hit something (:func:`tlm.kernels.photons.reached`), the same rule for every light.
 * ``tlm error-vs-cost`` never carried the share: its rows now have ``cut_share`` and the study says, once, which
   points pass :data:`~tlm.experiments.photon_warnings.CUT_SHARE` (kept in ``reference.json``'s ``warnings``).
@@ -107,7 +107,7 @@ def test_an_error_vs_cost_study_carries_the_share_and_says_its_points_once(tmp_p
     [line] = [w for w in said if "photons.max_bounces" in w]
     assert line.startswith(f"error-vs-cost: 2 of the 2 points are traced with photon paths that photons.max_bounces 8 "
                            f"ends still carrying more than 5% of the lights' power that reached the scene (rows' "
-                           f"cut_share), points 0, 1; the most, point 0 (estimate.final_gather=0): {share:.1%}; ")
+                           f"cut_share), points 0 and 1; the most, point 0 (estimate.final_gather=0): {share:.1%}; ")
     ref = json.loads((out / "reference.json").read_text())
     assert f"with final gathering (point 1) a point gathers one bounce past its reference {ref['key']}" in line
     assert ref["warnings"].count(line) == 1
@@ -123,7 +123,7 @@ def test_the_study_line_names_only_the_points_past_the_share():
             {"point": 3, "factors": "photons.count=4000", "cut_share": 0.07, "final_gather": 0}]
     line = study_cut_line(rows, cfg, "abc")
     assert line.startswith("error-vs-cost: 2 of the 3 points are traced with photon paths that photons.max_bounces 3")
-    assert "points 1, 3; the most, point 1 (photons.count=2000): 8.1%; their photon-map frames" in line
+    assert "points 1 and 3; the most, point 1 (photons.count=2000): 8.1%; their photon-map frames" in line
     assert "final gathering" not in line  # (point 0, gathered, is under the share)
     assert study_cut_line(rows[:1], cfg, "abc") is None and study_cut_line([], cfg, "abc") is None
 

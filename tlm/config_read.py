@@ -14,6 +14,7 @@ import os
 import stat
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from tlm.errors import InputError
 from tlm.mesh_files import MESH_FORMATS, descriptor_name, mesh_bytes_format, piped_mesh_hint
@@ -95,38 +96,62 @@ def nameless(path: str | os.PathLike) -> str | None:
     return None
 
 
-def config_file(config_path: str | os.PathLike | None) -> str | None:
+def config_file(config_path: str | os.PathLike | None, base: str | os.PathLike | None = None) -> str | None:
     """``results.json``'s ``config_file``: the absolute path, links resolved (the file whose folder its relative paths
     start at, :func:`tlm.config.file_folder`), of the config file ``config_path`` names as the run was given it
     (``../exp/a.yaml``: from the working folder of then), which a reader in another folder finds again; None where
     there is none to find again: no file (a mapping's None, a description), a config read once (:func:`nameless`: a
-    pipe, a named FIFO, ``/dev/stdin``), whose every setting the run folder's ``config.resolved.yaml`` keeps."""
+    pipe, a named FIFO, ``/dev/stdin``), whose every setting the run folder's ``config.resolved.yaml`` keeps.
+    ``base``: the folder the config was read from (the run's): a relative path that names a file of another folder
+    from here (``tlm.api.load_config('a.yaml')``, then ``os.chdir``, then ``tlm.api.run``: another ``a.yaml``, or
+    none) is looked for there by its name, else None: never another file than the one the run read."""
     if not config_path:
         return None
     try:
         path = Path(config_path)
-        return str(path.resolve()) if nameless(path) is None and path.is_file() else None
+        found = path.resolve() if nameless(path) is None and path.is_file() else None
+        if base is not None and not path.is_absolute():
+            own = Path(base) / path.name  # (where the run read it: its folder, links resolved, tlm.config.file_folder)
+            if found is None or (found.parent != Path(base).resolve() and found != own.resolve()):
+                found = own.resolve() if own.is_file() and nameless(own) is None else None
+        return None if found is None else str(found)
     except (OSError, ValueError, RuntimeError):
         return None
 
 
-def rerun_sets(overrides: Iterable[str] | None) -> list[str]:
+def rerun_sets(overrides: Iterable[str] | None, read: Callable[[str], Any] | None = None) -> list[str]:
     """The ``--set`` strings ``overrides``, given in this working folder, as a command run from another folder takes
     them (``tlm reference``'s, that ``results.json`` records): a relative path given to ``scene`` or to a key of
     ``PATH_KEYS`` absolute, as :func:`tlm.config.apply_overrides` took it (``scene=my.yaml``; not a built-in scene's
-    name, ``scene=cornell``); every other as given."""
+    name, ``scene=cornell``); every other as given. Each value read by ``read``, as ``--set`` reads it (the run's
+    :func:`tlm.config.read_set_value`, which tlm.config, above this module, has: a byte not UTF-8 in a folder's name,
+    ``scene=dir_\\xff/s.yaml``, too; None: plain YAML, :func:`~tlm.config_words.parse_yaml`), the path written back so
+    that it reads as itself: in YAML's single quotes where it would read as another value (``/a: b #1/s.yaml``)."""
     from tlm.config_paths import paths_from, scene_from  # (tlm.config, which imports this module, has them)
     from tlm.config_words import parse_yaml
 
+    reader = read or parse_yaml
     out = []
     for item in map(str, overrides or ()):
         key, _, text = item.partition("=")
         key, found = key.strip(), None
         try:
-            value = parse_yaml(text)
+            value = reader(text)
             found = scene_from(value, [Path.cwd()], False) if key == "scene" else paths_from(key, value, Path.cwd())
-            found = found if isinstance(found, str) and found != value and parse_yaml(found) == found else None
+            if isinstance(found, str) and found != value:
+                found = next((t for t in (found, "'" + found.replace("'", "''") + "'")
+                              if _reads_as(reader, t, found)), None)
+            else:
+                found = None
         except Exception:  # (a value the run refused would have stopped it: kept as given)
             found = None
         out.append(f"{key}={found}" if found else item)
     return out
+
+
+def _reads_as(read: Callable, text: str, value: str) -> bool:
+    """Whether ``--set`` reads ``text`` (by ``read``, :func:`tlm.config.read_set_value`) as the string ``value``."""
+    try:
+        return read(text) == value
+    except Exception:  # (YAML's refusal of it)
+        return False

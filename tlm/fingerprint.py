@@ -168,9 +168,11 @@ def read_sealed(folder: Path, name: str, key: str, what: str, again: str, fmt: s
     the folder is still the one read: not one another process put in its place meanwhile), and computed again
     (``what``, ``again``: as :func:`~tlm.caches.cached_image` says it). One of another format of the same name
     (another tlm's) is not read, nor removed: computed again and replaced, quietly, as a functional sidecar of
-    another format is. One with neither (written by a tlm before the seals, 2026-12-03) is used as it is, said once
-    in this process in a warning (``renew``: what computes it again, sealed): a value changed in it cannot be told,
-    and computing it again (a reference, minutes; a ground truth, up to hours) is the user's call."""
+    another format is. One with neither (written by a tlm before the seals, 2026-12-03) is used as it is (computing
+    it again, a reference minutes, a ground truth up to hours, is the user's call: ``renew`` says how) and sealed
+    in place as read (:func:`_seal_as_read`: its owner, a cache that can be written), said once, so that later
+    runs read it quietly; one that cannot be sealed (another user's, a read-only cache) is said once in this
+    process: a value changed in it cannot be told."""
     import os
 
     from tlm.caches import cached_image, remove_entry
@@ -185,19 +187,21 @@ def read_sealed(folder: Path, name: str, key: str, what: str, again: str, fmt: s
             found = cached_image(folder, name, key, what, again, fields, optional)
             if found is None:
                 return None
-            meta = found[1]
-            got = meta.get("format")
-            if got is None and META_SEAL not in meta:
+            kind, why = seal_state(found[1], fmt, what)
+            if kind == "older":
+                if (now := _seal_as_read(folder, held, found[1], fmt)) is not None:
+                    warn(f"{what} cache entry {folder} was written by an older tlm, its meta.json without "
+                         f"{META_SEAL!r} (a digest of its own): sealed as read, so a value changed in it from now on "
+                         f"is told (one changed before cannot be: {renew})")
+                    return found[0], now
                 if str(folder) not in _OLDER:
                     _OLDER.add(str(folder))
                     warn(f"{what} cache entry {folder} was written by an older tlm: its meta.json has no "
                          f"{META_SEAL!r} (a digest of its own), so a value changed in it cannot be told; it is used "
                          f"as it is ({renew})")
                 return found
-            if isinstance(got, str) and got != fmt and got.partition("/")[0] == fmt.partition("/")[0]:
+            if kind == "other":
                 return None  # (another tlm's: computed again and replaced)
-            why = (seal_problem(meta, META_SEAL) if got == fmt else f"it has no {'format'!r}" if got is None
-                   else f"format {json.dumps(got)[:60]}: not a {what} cache entry's")
             if why is None:
                 return found
             try:
@@ -214,3 +218,49 @@ def read_sealed(folder: Path, name: str, key: str, what: str, again: str, fmt: s
         warn(f"damaged {what} cache entry {folder / 'meta.json'} ({why}): {done}; {again}")
         return None
     return None
+
+
+def seal_state(meta: dict, fmt: str, what: str) -> tuple[str | None, str | None]:
+    """How :func:`read_sealed` takes the ``meta.json`` ``meta`` of an entry whose writer's format is ``fmt``:
+    ``("older", None)``, written before the seals (no ``format``, no :data:`META_SEAL`: used as it is);
+    ``("other", None)``, another tlm's format of the same name (computed again, quietly); ``(None, why)``, a
+    damaged one (why); ``(None, None)``, sealed and whole. What ``tlm sweep --dry-run`` counts as cached, too."""
+    got = meta.get("format")
+    if got is None and META_SEAL not in meta:
+        return "older", None
+    if isinstance(got, str) and got != fmt and got.partition("/")[0] == fmt.partition("/")[0]:
+        return "other", None
+    return None, (seal_problem(meta, META_SEAL) if got == fmt else f"it has no {'format'!r}" if got is None
+                  else f"format {json.dumps(got)[:60]}: not a {what} cache entry's")
+
+
+def _seal_as_read(folder: Path, held: int | None, meta: dict, fmt: str) -> dict | None:
+    """Seal in place the ``meta.json`` of the older entry ``folder`` (no format, no digest) as it was read, ``meta``,
+    its image checked against it (:func:`read_sealed`): written whole in its place (:func:`tlm.storage.write_into`,
+    under the folder's lock), only where this user owns it, the folder can be written, and the folder and its
+    ``meta.json`` are still those read (``held``, the folder's descriptor as it was read): the sealed ``meta``, or
+    None where it was left as it is (another user's, a read-only or full cache, replaced meanwhile)."""
+    import os
+
+    from tlm.errors import EnvironmentFailure
+    from tlm.storage import write_into
+
+    path = folder / "meta.json"
+    try:
+        if held is None or os.stat(path, follow_symlinks=False).st_uid != os.geteuid() \
+                or not os.access(folder, os.W_OK):
+            return None
+    except OSError:
+        return None
+
+    def keep(at: Path) -> bool:  # (the folder read, its meta.json as read: not one put in their place meanwhile)
+        try:
+            return os.path.samestat(os.stat(at), os.fstat(held)) and json.loads(path.read_bytes()) == meta
+        except (OSError, ValueError):
+            return False
+
+    now = sealed({**meta, "format": fmt}, META_SEAL)
+    try:
+        return now if write_into(folder, "meta.json", json.dumps(now, indent=2) + "\n", keep) else None
+    except (OSError, EnvironmentFailure):
+        return None

@@ -494,7 +494,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
-                         finish=lambda rows, _tmp: blur.said(say, study_cut_said(say, rows, cfg0, key)),
+                         finish=lambda rows, _tmp: blur.said(say, study_cut_said(  # (a black reference: no
+                             say, rows, cfg0, key, measured=not black["reference_black"])),  # error measured)
                          files=lambda rows: {"reference.json": {"key": key, **ref_meta,  # (its resolution: h507)
                                                                 "resolution": [scene.camera.width, scene.camera.height],
                                                                 "reference_converged": converged,

@@ -67,6 +67,8 @@ from tlm.experiments.frame_scenes import moved_line
 from tlm.experiments.frame_scenes import scene_fingerprint as scene_fingerprint
 from tlm.experiments.run_warnings import emitted_photons, reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
+from tlm.fingerprint import seal_problem as _seal_problem
+from tlm.fingerprint import sealed as _sealed
 from tlm.progress import Timer
 from tlm.registry import plugins
 from tlm.render.checks import note_warnings
@@ -141,27 +143,15 @@ def summary_problem(summary: dict) -> str | None:
 
 def sealed(side: dict) -> dict:
     """``side`` (a sidecar's content) with its digest, :data:`SEAL`: the sha256 of the canonical JSON of the rest of it
-    (its keys sorted, no spaces: :func:`_canonical`), so that a value changed in the file (a byte of a count) is
-    told from what was written, as the ``.npz``'s own sha256 tells its bytes."""
-    rest = {k: v for k, v in side.items() if k != SEAL}
-    return {**rest, SEAL: hashlib.sha256(_canonical(rest)).hexdigest()}
+    (:func:`tlm.fingerprint.sealed`, as a reference's ``meta.json`` is sealed), so that a value changed in the file (a
+    byte of a count) is told from what was written, as the ``.npz``'s own sha256 tells its bytes."""
+    return _sealed(side, SEAL)
 
 
 def seal_problem(side: dict) -> str | None:
     """Why the sidecar ``side`` (of :data:`SUMMARY_FORMAT`, as read) is not what :func:`sealed` wrote (its digest
-    missing, or not that of the rest of it), or None."""
-    held = side.get(SEAL)
-    if not isinstance(held, str):
-        return f"it has no {SEAL!r}"
-    if sealed(side)[SEAL] != held:
-        return f"its content differs from its {SEAL!r}"
-    return None
-
-
-def _canonical(value) -> bytes:
-    """``value``'s canonical JSON: keys sorted, no spaces (the same for what is written and what is read back:
-    a float's repr round-trips)."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":")).encode()
+    missing, or not that of the rest of it), or None (:func:`tlm.fingerprint.seal_problem`)."""
+    return _seal_problem(side, SEAL)
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:

@@ -17,6 +17,7 @@ measures part of that share as well as the run's noise.
 from __future__ import annotations
 
 from tlm.config import RunConfig
+from tlm.config_words import listing
 
 # the share of the lights' power past which the line is said: 5%, past twice the relative standard error of its mean
 # that a reference may keep (reference.tolerance 0.02), so the loss (the photon-map term darker by about the share or
@@ -34,6 +35,9 @@ from tlm.config import RunConfig
 # straight above by a directional light whose disc the well's opening takes a fifth of) 10.7%, which as a share of
 # the whole disc's power was 2.2% (tests/test_cut_and_words_h529.py)
 CUT_SHARE = 0.05
+# the points the study's line names (the report's way, :func:`~tlm.config_words.listing`): of more, the first ones and
+# how many more (configs/error_vs_cost.yaml's 66 points at a low photons.max_bounces: every one past the share)
+NAMED_POINTS = 7
 
 
 def cut_warnings(photons: dict | int | None, cfg: RunConfig, error: dict | None = None) -> list[str]:
@@ -57,19 +61,22 @@ def cut_warnings(photons: dict | int | None, cfg: RunConfig, error: dict | None 
     return [line]
 
 
-def study_cut_line(rows: list[dict], cfg: RunConfig, key: str) -> str | None:
+def study_cut_line(rows: list[dict], cfg: RunConfig, key: str, measured: bool = True) -> str | None:
     """``tlm error-vs-cost``'s line, once for the study (h529), on its points whose photons still carried more than
     :data:`CUT_SHARE` of the lights' power that reached the scene when ``photons.max_bounces`` (the base's: every
-    point shares it with the reference ``key``) ended their paths: how many, each named (``point``), the most of
+    point shares it with the reference ``key``) ended their paths: how many, each named (``point``; of more than
+    :data:`NAMED_POINTS` + 1, the first and how many more, :func:`~tlm.config_words.listing`), the most of
     them with its ``factors``, and, for those with final gathering, that they gather one bounce past the reference,
-    so their rmse and rel_mse carry part of that share. ``rows``: the study's (their ``cut_share``; a row without
-    one, of an older study, is not weighed). None where no point passes the share."""
+    so their rmse and rel_mse carry part of that share (not where ``measured`` is False, a black reference: no
+    rel_mse, and the rmse each point's own radiance, as the study's line on it says; h535). ``rows``: the study's
+    (their ``cut_share``; a row without one, of an older study, is not weighed). None where no point passes the
+    share."""
     weighed = [r for r in rows if isinstance(r.get("cut_share"), int | float) and not isinstance(r["cut_share"], bool)]
     past = [r for r in weighed if r["cut_share"] > CUT_SHARE]
     if not past:
         return None
     worst = max(past, key=lambda r: r["cut_share"])
-    named = ", ".join(str(r["point"]) for r in past)
+    named = listing((r["point"] for r in past), NAMED_POINTS)  # (of many, the first and how many more: h535)
     count = len(past)
     line = (f"error-vs-cost: {count} of the {len(weighed)} points {'is' if count == 1 else 'are'} traced with photon "
             f"paths that photons.max_bounces {cfg.photons.max_bounces} ends still carrying more than {CUT_SHARE:.0%} "
@@ -78,16 +85,16 @@ def study_cut_line(rows: list[dict], cfg: RunConfig, key: str) -> str | None:
             f"{'their' if count > 1 else 'its'} photon-map frames miss the light of the later bounces and are darker "
             f"for it; raise the base's photons.max_bounces")
     gathered = [str(r["point"]) for r in past if (r.get("final_gather") or 0) > 0]
-    if gathered:
-        line += (f"; with final gathering (point{'s' if len(gathered) > 1 else ''} {', '.join(gathered)}) a point "
-                 f"gathers one bounce past its reference {key}, which reads the indirect map at the eye's point, so "
-                 "its rmse and rel_mse carry part of that share")
+    if gathered and measured:
+        line += (f"; with final gathering (point{'s' if len(gathered) > 1 else ''} {listing(gathered, NAMED_POINTS)}) "
+                 f"a point gathers one bounce past its reference {key}, which reads the indirect map at the eye's "
+                 "point, so its rmse and rel_mse carry part of that share")
     return line
 
 
-def study_cut_said(say, rows: list[dict], cfg: RunConfig, key: str) -> list[dict]:
+def study_cut_said(say, rows: list[dict], cfg: RunConfig, key: str, measured: bool = True) -> list[dict]:
     """``rows``, as they are, once ``say`` got :func:`study_cut_line` (where there is one): the study's ``finish``."""
-    line = study_cut_line(rows, cfg, key)
+    line = study_cut_line(rows, cfg, key, measured)
     if line is not None:
         say(line)
     return rows

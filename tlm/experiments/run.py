@@ -43,7 +43,7 @@ from tlm.arch.functional import Functional, save_npz
 from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
 from tlm.claims import claimed
-from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
+from tlm.config import ArchConfig, RunConfig, noting_reads, read_set_value, to_dict
 from tlm.config_read import config_file, nameless, rerun_sets
 from tlm.config_words import dump_yaml, with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean, shell_word
@@ -366,7 +366,7 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
 
 
 def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None,
-                      out: Path | None = None) -> dict:
+                      out: Path | None = None, base: Path | None = None) -> dict:
     """What ``results.json``'s ``error`` records of a photon-map reference not computed as asked:
     ``skipped``, why (``--no-reference``, the run's ``reference`` false, or the config's
     ``reference.auto: false``), and ``command``, the ``tlm reference`` command that computes it
@@ -379,8 +379,8 @@ def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterab
     skipped = "--no-reference" if cfg.reference.auto else "reference.auto: false"
     once = read_once(config_path)
     if once is None or out is None:
-        return {"skipped": skipped, "command": reference_command(config_file(config_path) or config_path,
-                                                                 rerun_sets(overrides))}
+        return {"skipped": skipped, "command": reference_command(config_file(config_path, base) or config_path,
+                                                                 rerun_sets(overrides, read_set_value))}
     kept = (Path(out) / "config.resolved.yaml").absolute()
     return {"skipped": skipped, "command": reference_command(str(kept)),
             "config_read_once": f"{config_path} is {once}, read once: the command names the run's copy of it, "
@@ -491,7 +491,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
     return {
         "tlm": "results/1",
         "config": config_path,
-        "config_file": config_file(config_path),  # (absolute: config as typed is of the working folder of then)
+        "config_file": config_file(config_path, res.base),  # (absolute: config as typed is of the working folder then)
         "overrides": list(res.overrides),
         "seed": res.cfg.seed,
         "mode": res.cfg.mode,
@@ -666,13 +666,14 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
         programs = programs_for(cfg, base)  # a bad instruction table fails before the render
         res = render(cfg, base, source, progress=progress, reference=reference, overrides=tuple(overrides or ()),
                      via=via)
+        res = replace(res, base=base)  # (the config's folder: results.json's config_file, config_read.config_file)
         if reference and res.error is not None and not res.error["available"]:
             with res.timer.stage("reference"):
                 error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
                                      progress=progress, say=say)
             res = replace(res, error=error)
         elif res.error is not None and not res.error["available"]:  # (skipped as asked: the report says so)
-            res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides, out)})
+            res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides, out, base)})
         res = simulate_render(res, programs, progress=progress)
         with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
             results = write_run(res, out, config_path, overrides, outputs,

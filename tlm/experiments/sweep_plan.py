@@ -279,13 +279,15 @@ def _saved_rounds(key: str) -> int:
 
 def _cached_meta(key: str) -> dict | None:
     """The ``meta.json`` of the cached reference ``key`` where the entry is whole (its fields of their types, its
-    ``reference.npy`` the file the metadata describes), else None: read only (a damaged one is neither said nor
+    seal, :func:`~tlm.fingerprint.seal_state`, or none where an older tlm wrote it, its ``reference.npy`` the file
+    the metadata describes), else None: read only (a damaged one is neither said nor
     removed here: the sweep's own read does both, and computes it again). Looked at, not used: its files' access
     times stay as they were (:func:`~tlm.experiments.frame_keys.looked`), which ``tlm cache prune`` reads as their
     last use (a ``--dry-run --reference`` made a reference unused for 40 days used now)."""
     from tlm.caches import fields_problem
     from tlm.experiments.frame_keys import looked
-    from tlm.experiments.reference_cache import META_FIELDS, META_OPTIONAL, cache_dir
+    from tlm.experiments.reference_cache import META_FIELDS, META_FORMAT, META_OPTIONAL, cache_dir
+    from tlm.fingerprint import seal_state
 
     folder = cache_dir() / key
     try:
@@ -294,6 +296,8 @@ def _cached_meta(key: str) -> dict | None:
         return None
     if not isinstance(meta, dict) or meta.get("key", key) != key or fields_problem(meta, META_FIELDS, META_OPTIONAL):
         return None
+    if seal_state(meta, META_FORMAT, "reference") not in (("older", None), (None, None)):  # (its seal, as read)
+        return None  # (damaged, or another tlm's: computed again)
     npy = meta.get("npy")
     if not isinstance(npy, dict) or not isinstance(npy.get("size"), int):
         return None

@@ -42,6 +42,7 @@ from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render
 from tlm.experiments.provenance import kernels_here
 from tlm.experiments.reference_cache import holding
+from tlm.registry import plugins
 from tlm.storage import atomic_folder
 from tlm.storage_errors import says_disk_full
 
@@ -155,7 +156,9 @@ def run_point(task: Task) -> dict:
                 # results.json's text, measured below)
                 "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6),
                                  "write": None, "one_off": round(one_off, 6)},
-                **task.provenance, "versions": ran, "ran": ran_on,
+                **task.provenance, "versions": ran,
+                # (the classes from outside tlm its config selects, their code's digest: as a run's results.json)
+                "plugins": plugins(task.config), "ran": ran_on,
             }
             # (its folder made, config.resolved.yaml, trace.json and the record: all of the write but results.json's
             # own text and the folder's move into place, which come after the seconds they would hold)
