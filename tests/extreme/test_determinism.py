@@ -49,15 +49,15 @@ POINT_HOST_FIELDS = ("functional.render_host_seconds",)  # the render's seconds 
 # (its "key" and "cached" are compared: the key hashes the config, the scene and the
 # functional layer's source, and the first point of each key renders, the rest read it)
 # the reference's meta.json: how long the rounds took
-REFERENCE_HOST_FIELDS = ("host_seconds",)
+REFERENCE_HOST_FIELDS = ("host_seconds", "meta_sha256")  # (and its seal, a digest over them: h528)
 # sweep.csv / sweep.jsonl columns copied from the points' host_seconds
 SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write",
                       "worker", "host", "pid")  # (and who ran the point: its results.json "ran")
 
 # results.json sections of the functional layer (the render): independent of the
 # architecture, so equal across packet sizes, N and schedulers ...
-FUNCTIONAL_FIELDS = ("tlm", "config", "overrides", "seed", "mode", "scene", "plan", "primary", "work",
-                     "work_keys", "photons", "image", "error", "warnings",
+FUNCTIONAL_FIELDS = ("tlm", "config", "config_file", "plugins", "overrides", "seed", "mode", "scene", "plan",
+                     "primary", "work", "work_keys", "photons", "image", "error", "warnings",
                      "scene_digest")  # (h339: the scene inputs as read: the same for every arch)
 # ... and those of the timing model, which the architecture changes by design
 TIMING_FIELDS = ("cycles", "fps", "timing")

@@ -78,12 +78,14 @@ class Crossbar:
             del self.holder[k]
         self.holder[module] = pm
 
-    def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = ()):
+    def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = (), args: dict | None = None):
         """Copy ``words`` from module ``src`` to every module of ``dsts`` (one block at a time).
 
         More than one destination is the crossbar's fan-out: every destination is
         written at once, for the cycles of one copy. The copy waits for the arbiter's
-        grant; the modules serve it as requests of their own.
+        grant; the modules serve it as requests of their own. ``key``: (frame, pipeline),
+        the arbiter's order; ``args``: what the copy's trace slices hold besides its frame
+        and words (one dict per copy: a copy's slices never merge with another's).
         """
         cycles = -(-words // self.arch.copy_words_per_cycle)
         grant = self.env.event()
@@ -104,10 +106,15 @@ class Crossbar:
                     raise AssertionError(f"the crossbar copies {label!r} while {holder.unit.scope} works on "
                                          f"{self.modules[k].unit.scope}: it grants a module to one client at a time")
             self.copying.update((src, *dsts))
-            served = [src_m.request("xbar", 0, cycles, label),
-                      *(self.modules[d].request("xbar", 0, cycles, label) for d in dsts)]
+            tag = None
+            if self.unit.trace is not None:
+                tag = {"frame": key[0]} if key else {}
+                tag.update(args or {})
+                tag["words"] = words
+            served = [src_m.request("xbar", 0, cycles, label, 0, tag),
+                      *(self.modules[d].request("xbar", 0, cycles, label, 0, tag) for d in dsts)]
             yield from served  # every module serves it at once, for the same cycles
-            self.unit.account(start, cycles, 0, 0, label)
+            self.unit.account(start, cycles, 0, 0, label, tag)
         finally:
             self.copying.difference_update((src, *dsts))
             released.succeed()

@@ -50,7 +50,7 @@ class Module:
         self.requests = 0
         self.client: str | None = None  # the client of the latest service, busy until ``free_at``
         self.free_at = 0
-        self._mailbox: deque = deque()  # (client, misses, cycles, label, cycle posted) not yet booked
+        self._mailbox: deque = deque()  # (client, misses, cycles, label, cycle posted, tag) not yet booked
         self._mail = Signal(env)  # a request was posted (the process waits on it while the mailbox is empty)
         env.process(self._serve())
 
@@ -58,14 +58,16 @@ class Module:
         """The module's books at cycle ``end``: its breakdown, its services and the rows they opened."""
         return ModuleResult(self.unit.scope, self.unit.breakdown(end), self.requests, self.rows_opened)
 
-    def request(self, client: str, misses: int, cycles: int, label: str = "page misses", then: int = 0) -> Event:
+    def request(self, client: str, misses: int, cycles: int, label: str = "page misses", then: int = 0,
+                tag: dict | None = None) -> Event:
         """Post a request of ``cycles`` (``misses`` rows opened), served from this cycle on.
 
         The event fires ``then`` cycles after the service ends: a PM passes the cycles
-        it computes once its data are in, so that one event ends its packet.
+        it computes once its data are in, so that one event ends its packet. ``tag``: the
+        args of the service's trace slice, the client job's (:meth:`tlm.arch.units.Trace.add_work`).
         """
         env = self.env
-        self._mailbox.append((client, misses, cycles, label, env.now))
+        self._mailbox.append((client, misses, cycles, label, env.now, tag))
         mail = self._mail
         ev = mail.event  # (mail.fire(), inline: once per packet with page misses)
         if ev is not None:
@@ -85,7 +87,7 @@ class Module:
                     ev = mail.event = Event(self.env)
                 yield ev
                 continue
-            client, misses, cycles, label, start = mailbox.popleft()
+            client, misses, cycles, label, start, tag = mailbox.popleft()
             end = start + cycles
             if start < self.free_at or client != self.client:
                 self._claim(client, start, cycles)
@@ -105,7 +107,7 @@ class Module:
                 tid = unit._tid
                 if tid is None:
                     tid = unit._tid = trace.row(unit.scope)
-                trace.add_work(tid, label, start, end, norm, ms, 0)
+                trace.add_work(tid, label, start, end, norm, ms, 0, tag)
 
     def _claim(self, client: str, start: int, cycles: int) -> None:
         if start < self.free_at and client != self.client:

@@ -70,7 +70,7 @@ from tlm.arch.granularity import (
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
 from tlm.arch.steady import frames_cap, keep_going, repeats_from_warmup, steady_throughput
-from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run, within_int64
+from tlm.arch.units import Deadlock, MaxEventsReached, Trace, Waiting, run, within_int64
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS, may_run_on
 
@@ -152,11 +152,13 @@ class _Frame:
             if prev is None:
                 after = list(gate)
             else:
-                after = [(prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}")]
+                after = [(prev, "handshake", Waiting(f"semaphore '{prev_name}' of frame {rec.index}", on="phase",
+                                                     on_name=prev_name, on_frame=rec.index))]
             if spec.copy_words:
                 copy_done = Flag(env)
                 waits = [ev for ev, _, _ in after]
-                after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
+                after.append((copy_done, "copy", Waiting(f"block copy for '{spec.name}' of frame {rec.index}",
+                                                         on="copy", on_name=spec.name, on_frame=rec.index)))
                 env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
             fifo = Fifo(env, model.arch.fifo_depth, pipe) if len(spec.jobs) == 2 else None
             if fifo is not None:
@@ -177,7 +179,8 @@ class _Frame:
         """Copy ``tile``'s pixels from pipeline ``pipe``'s module to the top-level unit (a process step)."""
         model, rec = self.model, self.rec
         yield from model.xbar.copy(model.module(pipe, rec.slot, 1), [model.compose], WORDS_PER_PIXEL * tile.pixels,
-                                   f"{tile.name} to the image (frame {rec.index})", (rec.index, pipe))
+                                   f"{tile.name} to the image (frame {rec.index})", (rec.index, pipe),
+                                   {"tile": tile.name})
 
 
 def _frame_process(model: Model, rec: FrameRecord):
@@ -193,11 +196,13 @@ def _frame_process(model: Model, rec: FrameRecord):
     for stage in model.program.stages:
         gate = []
         if prev is not None:
-            gate.append((prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}"))
+            gate.append((prev, "handshake", Waiting(f"semaphore '{prev_name}' of frame {rec.index}", on="stage",
+                                                    on_name=prev_name, on_frame=rec.index)))
         if stage.shared:
             if pending_returns:
                 fan_in = Flag(env)
-                gate.append((fan_in, "copy", f"results to pipeline 0 for '{stage.name}' of frame {rec.index}"))
+                gate.append((fan_in, "copy", Waiting(f"results to pipeline 0 for '{stage.name}' of frame {rec.index}",
+                                                     on="fan-in", on_name=stage.name, on_frame=rec.index)))
                 env.process(_fan_in(model, rec, prev, stage, returns, fan_in))
             (tile,) = stage.tiles
             prev = frame.chain(0, tile.phases, gate)
@@ -205,7 +210,8 @@ def _frame_process(model: Model, rec: FrameRecord):
         else:
             fan_out = [Flag(env) for _ in range(n_pipes)]
             env.process(_fan_out(model, rec, prev, stage, fan_out))
-            gates = [[*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
+            gates = [[*gate, (fan_out[p], "copy", Waiting(f"'{stage.name}' data of frame {rec.index}", on="fan-out",
+                                                          on_name=stage.name, on_frame=rec.index))]
                      for p in range(n_pipes)]
             prev, stage_tails = scheduler.run_stage(frame, stage, gates)
             tails.extend(stage_tails)
@@ -264,7 +270,8 @@ def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b
     # data produced on one module of the image and needed on the other
     to = spec.jobs[0].role if spec.copy_to is None else spec.copy_to
     src, dst = (b, a) if to == 0 else (a, b)
-    yield from model.xbar.copy(src, [dst], spec.copy_words, f"{spec.name} (frame {frame})", (frame, pipe))
+    yield from model.xbar.copy(src, [dst], spec.copy_words, f"{spec.name} (frame {frame})", (frame, pipe),
+                               {"job": spec.name})
     copy_done.succeed()
 
 

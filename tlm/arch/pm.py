@@ -53,6 +53,28 @@ class Job:
     label: str = field(init=False, repr=False)  # "frame <frame> <phase>"
     space_what: str = field(init=False, repr=False)  # what a FIFO-full stall waits for (made once)
     data_what: str = field(init=False, repr=False)  # what a FIFO-empty stall waits for
+    # the args its trace slices share (frame, job, tile: PM.submit, with a trace), one dict for all of them
+    tag: dict | None = field(default=None, init=False, repr=False)
+    stall_args: dict | None = field(default=None, init=False, repr=False)  # its stall slices' args, by what
+
+    def args(self, waiting_for: str, on: str, on_name: str | None = None, on_frame: int | None = None
+             ) -> dict | None:
+        """A stall slice's args (None without a trace): ``waiting_for``, the job's :attr:`tag`, what it
+        waits ``on`` (``on_name``, ``on_frame``); one dict for every stall of the job on the same
+        ``waiting_for`` (kept in :attr:`stall_args`: the trace writes a shared dict's text once)."""
+        if self.tag is None:
+            return None
+        cache = self.stall_args
+        if cache is None:
+            cache = self.stall_args = {}
+        out = cache.get(waiting_for)
+        if out is None:
+            out = cache[waiting_for] = {"waiting_for": waiting_for, **self.tag, "on": on}
+            if on_name is not None:
+                out["on_name"] = on_name
+            if on_frame is not None:
+                out["on_frame"] = on_frame
+        return out
 
     def __post_init__(self) -> None:
         self.label = label = f"frame {self.frame} {self.phase}"
@@ -130,6 +152,10 @@ class PM:
         self._stats = self.unit.stats  # (the unit's books, kept at hand for the packet loops)
         self._raw = self.unit._raw
         self._trace = model.trace
+        # the tile of each of the program's jobs (by the JobSpec's id: the program outlives the run), for the trace
+        self._tiles = {} if model.trace is None else {
+            id(js): tile.name for st in model.program.stages for tile in st.tiles for ph in tile.phases
+            for js in ph.jobs if js.pm == self.kind}
         self._settle = model.cycle_end.event  # (Priority.SETTLE): an event at the end of the cycle
         self.env.process(self._loop())
 
@@ -161,6 +187,8 @@ class PM:
         while i > 0 and self._rank(q[i - 1]) > rank:
             i -= 1
         q.insert(i, job)
+        if self._trace is not None:
+            job.tag = {"frame": job.frame, "job": job.phase, "tile": self._tiles.get(id(job.spec), "")}
         self.issued += int(job.spec.items.sum())
         self.poke()
 
@@ -238,7 +266,9 @@ class PM:
                 continue
             top = self.queue[0]  # (of the highest priority)
             _, cause, what = top.blocker()
-            yield from unit.stall(cause, self._any_of(env, self._wake_events()), f"{what} ({top.label})")
+            text = f"{what} ({top.label})"
+            args = None if top.tag is None else top.args(text, **getattr(what, "args", {"on": cause}))
+            yield from unit.stall(cause, self._any_of(env, self._wake_events()), text, args)
 
     def _enter(self, job: Job):
         """Start or resume ``job``: the PM is routed to the job's module (a *swap* if it moves)
@@ -252,14 +282,19 @@ class PM:
         self.working_on = job.module  # (from the grant on: the swap's cycles are the module's too)
         if self.route != job.module:
             if self.route is not None:
-                yield from unit.delay("swap", arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
+                to = m.modules[job.module].unit.scope
+                what = f"route to {to}"
+                yield from unit.delay("swap", arch.swap_cycles, what, job.args(what, "route", to))
                 m.xbar.swaps += 1
             self.route = job.module
         if job.suspended:
-            # on a row of its own: the PM itself is busy for the other image meanwhile
-            m.trace_slice(f"{unit.scope} (preempted)", "preempted", job.suspended_at, int(env.now),
-                          job=job.label)
-            yield from unit.delay("preemption", arch.context_switch_cycles, "restore context")
+            trace = self._trace
+            if trace is not None and env.now > job.suspended_at:
+                # on a row of its own: the PM itself is busy for the other image meanwhile
+                trace.add_exact(trace.row(f"{unit.scope} (preempted)"), "preempted", job.suspended_at, int(env.now),
+                                job.tag)
+            yield from unit.delay("preemption", arch.context_switch_cycles, "restore context",
+                                  job.args("restore context", "context restore"))
             job.suspended = False
 
     def _packets(self, job: Job, module):
@@ -307,7 +342,8 @@ class PM:
                 if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
                     norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
                 start = env.now
-                yield module.request(scope, misses, ms, "page misses", norm + ps) if ms else Timeout(env, norm + ps)
+                yield module.request(scope, misses, ms, "page misses", norm + ps, job.tag) if ms else \
+                    Timeout(env, norm + ps)
                 stats.norm += norm
                 stats.ms += ms
                 stats.ps += ps
@@ -317,7 +353,7 @@ class PM:
                     tid = unit._tid
                     if tid is None:
                         tid = unit._tid = trace.row(scope)
-                    trace.add_work(tid, "busy", start, end, norm, ms, ps)
+                    trace.add_work(tid, "busy", start, end, norm, ms, ps, job.tag)
                 if queue[0].frame < frame:  # an older image's job is queued: let the cycle settle
                     yield self._settle(_SETTLE)
             if pushes or pops:
@@ -342,7 +378,13 @@ class PM:
 
     def _suspend(self, job: Job):
         """Preempted at a packet boundary: save the context; the job waits in the queue."""
-        yield from self.unit.delay("preemption", self.model.arch.context_switch_cycles, "save context")
+        args = None
+        if job.tag is not None:  # (the trace's args: the job suspended, for the older image's job that runs next)
+            by = self._ready()
+            args = {"waiting_for": "save context", **job.tag, "on": "context save"}
+            if by is not None:
+                args.update(on_name=by.phase, on_frame=by.frame)
+        yield from self.unit.delay("preemption", self.model.arch.context_switch_cycles, "save context", args)
         job.suspended = True
         job.interrupted = False
         job.suspended_at = int(self.env.now)
@@ -385,7 +427,7 @@ class PM:
         unit.waiting_for = what
         yield wake
         unit.waiting_for = None
-        unit.stalled(cause, start, what)
+        unit.stalled(cause, start, what, job.args(what, "fifo", job.phase, job.frame))
         if self.changed.triggered:  # (self._rearm(), inline)
             self.changed = Flag(self.env)
         return True

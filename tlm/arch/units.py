@@ -137,7 +137,19 @@ def row_order(scope: str, modules_per_pipe: int = 4) -> tuple:
     return (1 << 30, 2, last.get(base, 2), base, preempted)
 
 
-_SLICE = 8  # the entries of a slice in Trace._flat: name, start, end, tid, args, T_norm, T_ms, T_ps
+_SLICE = 9  # the entries of a slice in Trace._flat: name, start, end, tid, args, T_norm, T_ms, T_ps, tag
+_EXACT = object()  # the tag of a slice that merges only with one of equal args (Trace.add_exact)
+
+
+class Waiting(str):
+    """What a unit waits for: its text (``waiting_for``, the Deadlock message), and ``args``,
+    the same in structured form for the trace's stall slices (``on``: the kind of thing waited
+    for, ``on_name``, ``on_frame``; docs/architecture.md, "trace.json")."""
+
+    def __new__(cls, text: str, **args):
+        self = super().__new__(cls, text)
+        self.args = args
+        return self
 
 
 class Trace:
@@ -148,9 +160,12 @@ class Trace:
     then has one object to look at rather than one per slice (a run's survivors are
     scanned once after it, and its results collected when they are dropped). A work
     slice (:meth:`add_work`) keeps its T_norm, T_ms and T_ps as entries of their own,
-    summed in place when the next work continues it; its args dict is made when the
-    slice is first read (:meth:`_slices`). Any other slice has its args dict from the
-    start (and None for the three).
+    summed in place when the next work continues it, and its *tag*: a dict of the args it
+    shares with every slice of the same job (frame, job, tile; one object per job), which
+    only a slice of that same tag continues; its args dict (the tag's, then the three) is
+    made when the slice is first read (:meth:`_slices`). Any other slice has its args
+    dict from the start (and None for the three): :meth:`add_exact` continues a slice
+    only with equal args (a stall, a preemption), :meth:`add` any of the same name.
     """
 
     def __init__(self) -> None:
@@ -164,7 +179,8 @@ class Trace:
         flat = self._flat
         args = flat[i + 4]
         if args is None:
-            args = flat[i + 4] = {"T_norm": flat[i + 5], "T_ms": flat[i + 6], "T_ps": flat[i + 7]}
+            tag = flat[i + 8]
+            args = flat[i + 4] = {**(tag or {}), "T_norm": flat[i + 5], "T_ms": flat[i + 6], "T_ps": flat[i + 7]}
         return args
 
     def _slices(self):
@@ -189,7 +205,7 @@ class Trace:
         """:meth:`slice` on row ``tid`` (``end > start``), with its args as a dict of its own."""
         flat = self._flat
         i = self._last.get(tid)
-        if i is not None and flat[i + 2] == start and flat[i] == name:
+        if i is not None and flat[i + 2] == start and flat[i] == name and flat[i + 8] is None:
             flat[i + 2] = end
             old_args = self._args(i)
             for k, v in args.items():
@@ -200,13 +216,28 @@ class Trace:
                     old_args[k] = old + v
             return
         self._last[tid] = len(flat)
-        flat += (name, start, end, tid, args, None, None, None)
+        flat += (name, start, end, tid, args, None, None, None, None)
 
-    def add_work(self, tid: int, name: str, start: int, end: int, norm: int, ms: int, ps: int) -> None:
-        """:meth:`add` of a work slice, args T_norm, T_ms and T_ps (ints), without building them to merge."""
+    def add_exact(self, tid: int, name: str, start: int, end: int, args: dict) -> None:
+        """:meth:`add`, continuing the row's latest slice only where its args are equal
+        (``args`` is kept as it is, never changed: a dict shared by slices may be given)."""
         flat = self._flat
         i = self._last.get(tid)
-        if i is not None and flat[i + 2] == start and flat[i] == name:
+        if i is not None and flat[i + 2] == start and flat[i] == name and flat[i + 8] is _EXACT \
+                and flat[i + 4] == args:
+            flat[i + 2] = end
+            return
+        self._last[tid] = len(flat)
+        flat += (name, start, end, tid, args, None, None, None, _EXACT)
+
+    def add_work(self, tid: int, name: str, start: int, end: int, norm: int, ms: int, ps: int,
+                 tag: dict | None = None) -> None:
+        """:meth:`add` of a work slice, args the ``tag``'s (the job's: frame, job, tile), then T_norm,
+        T_ms and T_ps (ints), without building them to merge: it continues the row's latest slice
+        only where that has the same name and the same tag (the same object)."""
+        flat = self._flat
+        i = self._last.get(tid)
+        if i is not None and flat[i + 2] == start and flat[i] == name and flat[i + 8] is tag:
             flat[i + 2] = end
             args = flat[i + 4]
             if args is None:  # a work slice not read yet: its counts, summed in place
@@ -231,7 +262,7 @@ class Trace:
                 args["T_ps"] = old + ps
             return
         self._last[tid] = len(flat)
-        flat += (name, start, end, tid, None, norm, ms, ps)
+        flat += (name, start, end, tid, None, norm, ms, ps, tag)
 
     @property
     def events(self) -> list[dict]:
@@ -240,9 +271,11 @@ class Trace:
                 for n, s, e, tid, a in self._slices()]
 
     def fill_idle(self, end: int) -> None:
-        """Idle slices in every gap of every row, up to ``end``."""
+        """Idle slices in every gap of every unit's row, up to ``end``: not on a PM's
+        ``(preempted)`` row, which is not a unit of its own (its gaps are no cycles of the PM)."""
         flat = self._flat
         tids, starts, ends = flat[3::_SLICE], flat[1::_SLICE], flat[2::_SLICE]
+        aside = {tid for scope, tid in self.rows.items() if scope.endswith(" (preempted)")}
         # one pass over the slices while every row's come in increasing start, as each unit
         # books them (they are then in the (start, end) order the gaps are found in); a row
         # out of that order sorts each row's slices first
@@ -259,7 +292,7 @@ class Trace:
                 break
             latest[tid] = s
             if s > t:
-                gaps[tid] += ("idle", t, s, tid, {}, None, None, None)
+                gaps[tid] += ("idle", t, s, tid, {}, None, None, None, None)
             reach[tid] = e if e > t else t
         if gaps is None:  # sort each row's slices by (start, end), then the same pass
             by_row: dict[int, list[tuple[int, int]]] = {}
@@ -276,17 +309,19 @@ class Trace:
                 idle = gaps[tid] = []
                 for s, e in spans:
                     if s > t:
-                        idle += ("idle", t, s, tid, {}, None, None, None)
+                        idle += ("idle", t, s, tid, {}, None, None, None, None)
                     if e > t:
                         t = e
                 reach[tid] = t
         for tid, idle in gaps.items():
+            if tid in aside:
+                continue
             flat += idle
             if end > reach[tid]:
-                flat += ("idle", reach[tid], end, tid, {}, None, None, None)
+                flat += ("idle", reach[tid], end, tid, {}, None, None, None, None)
         for tid in self.rows.values():  # a unit that did nothing (a row made with no slice): idle throughout
-            if tid not in reach and end > 0:
-                flat += ("idle", 0, end, tid, {}, None, None, None)
+            if tid not in reach and tid not in aside and end > 0:
+                flat += ("idle", 0, end, tid, {}, None, None, None, None)
 
     def to_json(self, clock_hz: float | None = None, modules_per_pipe: int | None = None) -> dict:
         """The trace document, as Perfetto and chrome://tracing open it.
@@ -408,15 +443,30 @@ def _slice_texts(part: list, tid_of: dict, us: float, made: dict) -> list[str] |
     for n in set(names).difference(made):
         made[n] = json.dumps(n)
     arg_texts = []
-    for a, norm, ms, ps in zip(args, part[5::_SLICE], part[6::_SLICE], part[7::_SLICE], strict=True):
-        if a is None:  # a work slice not read yet: its three counts
+    for a, norm, ms, ps, tag in zip(args, part[5::_SLICE], part[6::_SLICE], part[7::_SLICE], part[8::_SLICE],
+                                    strict=True):
+        if a is None:  # a work slice not read yet: its tag's args, then its three counts
             if not (type(norm) is int and type(ms) is int and type(ps) is int):
                 return None
-            arg_texts.append(f'"T_norm": {norm}, "T_ms": {ms}, "T_ps": {ps}, ')
+            if tag:
+                text = made.get(id(tag))  # (a tag is one dict per job, kept by the trace: its id is its own)
+                if text is None:
+                    text = _args_text(tag, made)
+                    if text is None:
+                        return None
+                    made[id(tag)] = text
+            else:
+                text = ""
+            arg_texts.append(f'{text}"T_norm": {norm}, "T_ms": {ms}, "T_ps": {ps}, ')
         elif a:
-            text = _args_text(a, made)
+            shared = tag is _EXACT  # (an add_exact dict, never changed, often one for many slices: spelt once)
+            text = made.get(id(a)) if shared else None
             if text is None:
-                return None
+                text = _args_text(a, made)
+                if text is None:
+                    return None
+                if shared:
+                    made[id(a)] = text
             arg_texts.append(text)
         else:
             arg_texts.append("")
@@ -514,8 +564,9 @@ class Unit:
         yield self.env.timeout(norm + ms + ps)
         self.account(start, norm, ms, ps, label)
 
-    def account(self, start: int, norm: int, ms: int, ps: int, label: str) -> None:
-        """Book work of ``norm + ms + ps`` cycles from ``start`` (done inside another process)."""
+    def account(self, start: int, norm: int, ms: int, ps: int, label: str, tag: dict | None = None) -> None:
+        """Book work of ``norm + ms + ps`` cycles from ``start`` (done inside another process);
+        ``tag``: the args its trace slice shares with the job's others (:meth:`Trace.add_work`)."""
         stats = self.stats
         stats.norm += norm
         stats.ms += ms
@@ -527,10 +578,13 @@ class Unit:
             tid = self._tid
             if tid is None:
                 tid = self._tid = trace.row(self.scope)
-            trace.add_work(tid, label, start, end, norm, ms, ps)
+            trace.add_work(tid, label, start, end, norm, ms, ps, tag)
 
-    def stalled(self, cause: str, start: int, waiting_for: str) -> None:
-        """Book a data stall under ``cause`` from ``start`` to now (done by the waiting process)."""
+    def stalled(self, cause: str, start: int, waiting_for: str, args: dict | None = None) -> None:
+        """Book a data stall under ``cause`` from ``start`` to now (done by the waiting process).
+        Its trace slice's args: ``args`` (``waiting_for``'s text, the stalled job's frame, job and
+        tile, what it waits ``on``: one dict, never changed, that a job's stalls may share), else
+        ``waiting_for`` and, where it is a :class:`Waiting`, its ``args``."""
         now = self.env.now
         waited = now - start
         self.stats.stall[cause] += waited
@@ -541,22 +595,24 @@ class Unit:
                 tid = self._tid
                 if tid is None:
                     tid = self._tid = trace.row(self.scope)
-                trace.add(tid, _STALL_SLICE[cause], start, now, {"waiting_for": waiting_for})
+                if args is None:
+                    args = {"waiting_for": str(waiting_for), **getattr(waiting_for, "args", {})}
+                trace.add_exact(tid, _STALL_SLICE[cause], start, now, args)
 
-    def stall(self, cause: str, event: simpy.events.Event, waiting_for: str) -> Generator:
-        """Wait for ``event``; the time waited is a data stall (T_ds) under ``cause``."""
+    def stall(self, cause: str, event: simpy.events.Event, waiting_for: str, args: dict | None = None) -> Generator:
+        """Wait for ``event``; the time waited is a data stall (T_ds) under ``cause`` (``args``: :meth:`stalled`)."""
         if cause not in STALL_CAUSES:
             raise ValueError(f"stall cause {cause!r} is not one of {', '.join(STALL_CAUSES)}")
         start = self.env.now
         self.waiting_for = waiting_for
         value = yield event
         self.waiting_for = None
-        self.stalled(cause, start, waiting_for)
+        self.stalled(cause, start, waiting_for, args)
         return value
 
-    def delay(self, cause: str, cycles: int, what: str) -> Generator:
+    def delay(self, cause: str, cycles: int, what: str, args: dict | None = None) -> Generator:
         """A fixed data stall (a swap's re-route, a block copy, a context switch)."""
-        yield from self.stall(cause, self.env.timeout(_cycles(cycles, what)), what)
+        yield from self.stall(cause, self.env.timeout(_cycles(cycles, what)), what, args)
 
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
