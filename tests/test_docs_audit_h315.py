@@ -105,7 +105,8 @@ def test_every_key_tlm_params_lists_is_named_in_the_docs():
     """(item 3) Each dotted key of ``tlm params`` is named, whole, on a page of docs/."""
     pages = "".join(p.read_text(encoding="utf-8") for p in DOCS.glob("*.md"))
     missing = [key for key, _, _ in tlm.params() if key not in pages]
-    assert not missing, missing
+    assert not missing, (f"tlm params lists {', '.join(missing)}, which no page of docs/ names: document each "
+                         f"key in docs/usage.md, with its section's keys")
     usage = _text("usage.md")
     for key in ("photons.russian_roulette", "photons.caustic_count", "photons.aim_triangles", "estimate.cone_k",
                 "estimate.k_nearest"):

@@ -416,8 +416,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
                    cfg.photons.caustic_fraction, cfg.photons.caustic_count, cfg.photons.aim,
                    cfg.photons.aim_triangles, cfg.estimate.final_gather > 0, cfg.photons.levels,
-                   cfg.photons.leaf_photons, cfg.cache.block_words,
-                   same_frame_settings(cfg).get("cache.pairs", cfg.cache.pairs))  # (2, 3 and 4: one trace)
+                   cfg.photons.leaf_photons,  # the whole cache section (pairs 2, 3 and 4: one trace)
+                   replace(cfg.cache, pairs=same_frame_settings(cfg).get("cache.pairs", cfg.cache.pairs)))
         one_off = warm(cfg)  # (untimed: what the point's settings are the first to need, its one-off part)
         frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:  # (the trace, and the maps in the leaf order every gather reads them in)

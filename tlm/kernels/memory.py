@@ -93,7 +93,7 @@ reads (:class:`~tlm.kernels.recording.Recorder`, :class:`~tlm.kernels.recording.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass
 
 import numpy as np
 
@@ -111,6 +111,10 @@ INDICES_PER_WORD = 4  # 32-bit triangle indices of a leaf
 VERTEX_WORDS = 3  # a triangle slot: three 96-bit vertices with 32-bit headers
 SHADING_WORDS = 1  # a triangle's shading record (material and normal)
 PHOTON_WORDS = 2  # a stored photon (position, power, incoming direction)
+
+# The run config's ``cache`` keys (tlm.config_sections.CacheConfig) -> the Streams setting each sets: the one
+# place the section becomes the cache model (:meth:`Streams.of`; a key not here is refused, not dropped)
+CACHE_KEYS = {"block_words": "page_words", "pairs": "pairs"}
 
 # The cached streams of each programmable PM phase, in the order they take the pairs
 # (stream k: pair k mod pairs). The photon tracer's rays are the Traversal PM's
@@ -142,6 +146,10 @@ def page_misses(
 
     Returns ``miss`` (n,) bool (True on the accesses that start a missing run) and the
     state after the stream.
+
+    The rule is said three times, alike: here (numpy), in :func:`tlm.kernels._jit_memory.page_misses`
+    (numba, the default engine) and in :mod:`tlm.kernels.recording` (``_Head.settle`` and the arming in
+    ``Deferred._charged``): docs/architecture.md, "Changing the cache model".
     """
     a = np.asarray(addresses, dtype=np.int64)
     state = state or PairState()
@@ -459,10 +467,32 @@ class Streams:
     frame run in order with one object give exactly the whole frame's misses, per owner.
     """
 
+    # every setting, as :meth:`__init__` names it: what :meth:`settings` returns and a copy keeps
+    # (:meth:`~tlm.kernels.recording.Deferred.like`); a new one is added here and to __init__
+    SETTINGS = ("page_words", "pairs")
+
     def __init__(self, page_words: int = PAGE_WORDS, pairs: int = PAIRS):
         self.page_words = _whole("page_words", page_words, 1, MAX_PAGE_WORDS)
         self.pairs = _whole("pairs", pairs, 1)
         self.states: dict[str, PairState] = {}
+
+    @classmethod
+    def of(cls, cache) -> Streams:
+        """Cold pairs of a run config's ``cache`` section (a :class:`~tlm.config_sections.CacheConfig`, or
+        any object with its keys): every key by :data:`CACHE_KEYS`, so every caller (the frame's passes,
+        the photon tracer, a study's map key) gets a new key with no change of its own; a key of the
+        section that :data:`CACHE_KEYS` lacks is an error, never dropped."""
+        names = [f.name for f in fields(cache)] if is_dataclass(cache) else list(CACHE_KEYS)
+        unknown = [name for name in names if name not in CACHE_KEYS]
+        if unknown:
+            raise ValueError(f"cache.{unknown[0]} is no setting of the cache model: give it a Streams setting "
+                             f"in tlm.kernels.memory.CACHE_KEYS (docs/architecture.md, 'Changing the cache model')")
+        return cls(**{CACHE_KEYS[name]: getattr(cache, name) for name in names})
+
+    def settings(self) -> dict:
+        """Every setting (:data:`SETTINGS`) by its :meth:`__init__` name: ``type(self)(**settings())``
+        is cold pairs like these."""
+        return {name: getattr(self, name) for name in self.SETTINGS}
 
     def pair_of(self, name: str) -> tuple[str, int]:
         """The pair serving stream ``name`` and the stream's address region in it."""
@@ -504,7 +534,7 @@ class Streams:
         state): the arrays its misses went to corrected (``arrays``: name -> array, where
         :meth:`~tlm.kernels.recording.Deferred.portable` named them), these pairs left in
         the state after it."""
-        if (later.page_words, later.pairs) != (self.page_words, self.pairs):
+        if later.settings() != self.settings():
             raise ValueError(f"{later!r} is not charged on pairs like {self!r}")
         for key, head in later.heads.items():
             where = (later.final(head.first), None if head.second is None else later.final(head.second))
@@ -543,4 +573,5 @@ class Streams:
         before the packet decides.)"""
 
     def __repr__(self) -> str:
-        return f"Streams(page_words={self.page_words}, pairs={self.pairs}, states={self.states!r})"
+        settings = "".join(f"{k}={v!r}, " for k, v in self.settings().items())
+        return f"{type(self).__name__}({settings}states={self.states!r})"

@@ -294,6 +294,7 @@ def trace_photons(
     batch: int = 4,
     page_words: int = PAGE_WORDS,
     pairs: int = PAIRS,
+    cache=None,
     fresnel: bool = True,
     batch_rays: int | None = None,
     normals: np.ndarray | None = None,
@@ -311,7 +312,8 @@ def trace_photons(
     ``aim_triangles`` triangles of each part, :func:`aim_boxes`, :func:`emit`), which
     stores only caustic photons (L S+ D); the global group then stores only indirect
     ones (a diffuse bounce on the way), so nothing is counted twice. page_words, pairs : the
-    data cache whose misses the photons' reads are charged (the ``cache`` section).
+    data cache whose misses the photons' reads are charged; cache : in their place, a run
+    config's ``cache`` section (a render's), every key of it (:meth:`~tlm.kernels.memory.Streams.of`).
     batch_rays : the most rays a chunk of photons traces and keeps the reads of (the
     render's ``render.batch_rays``): photons go in chunks of at most ``batch_rays //
     max_bounces`` (or of :data:`PHOTON_MIN_BATCH` where that is more, :func:`photon_spans`), each
@@ -343,7 +345,7 @@ def trace_photons(
         if name not in ("caustic", "indirect", "global") or (name == "global" and not global_map):
             raise ValueError(f"radii: no {name!r} map to measure (the maps: 'caustic', 'indirect', "
                              f"and 'global' with global_map)")
-    streams = Streams(page_words, pairs)  # checks them before any tracing
+    streams = Streams(page_words, pairs) if cache is None else Streams.of(cache)  # checked before any tracing
     key = photon_key(seed)
     table = scene.material_table() if table is None else table
     for k in ("kind", "albedo", "reflectance", "transmittance", "ior"):

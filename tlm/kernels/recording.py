@@ -80,15 +80,16 @@ class Deferred(Streams):
     after the packet: exactly the misses of the packets charged in order.
     """
 
-    def __init__(self, page_words: int = PAGE_WORDS, pairs: int = PAIRS):
-        super().__init__(page_words, pairs)
+    def __init__(self, page_words: int = PAGE_WORDS, pairs: int = PAIRS, **more):
+        super().__init__(page_words, pairs, **more)  # (more: a setting Streams has beside these)
         self.heads: dict[str, _Head] = {}
         self.links: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     @classmethod
     def like(cls, streams: Streams) -> Deferred:
-        """Cold pairs of ``streams``' block size and pairs."""
-        return cls(streams.page_words, streams.pairs)
+        """Cold pairs of ``streams``' settings, every one (:meth:`Streams.settings`: the block size,
+        the pairs and any added since)."""
+        return cls(**streams.settings())
 
     def fold(self, src: np.ndarray, index: np.ndarray, dst: np.ndarray) -> None:
         super().fold(src, index, dst)
@@ -149,9 +150,6 @@ class Deferred(Streams):
         head.armed |= bool(np.any(words[:i] - page[:i] * pw > pw // 2))
         if i < n:
             head.next_page, head.second, head.second_missed = int(page[i]), where(i), bool(miss[i])
-
-    def __repr__(self) -> str:
-        return f"Deferred(page_words={self.page_words}, pairs={self.pairs}, states={self.states!r})"
 
 
 class Recorder:

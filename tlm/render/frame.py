@@ -81,8 +81,8 @@ class Frame:
 
 
 def new_streams(frame: Frame) -> Streams:
-    """Cold cache pairs of the frame's ``cache`` settings (block size, pairs per PM)."""
-    return Streams(frame.cfg.cache.block_words, frame.cfg.cache.pairs)
+    """Cold cache pairs of the frame's ``cache`` settings, every key (:meth:`Streams.of`)."""
+    return Streams.of(frame.cfg.cache)
 
 
 def new_work(p: int) -> dict[str, np.ndarray]:

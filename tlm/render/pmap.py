@@ -75,7 +75,7 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         caustic_fraction=cfg.photons.caustic_fraction, caustic_count=cfg.photons.caustic_count,
         aim=cfg.photons.aim, aim_triangles=cfg.photons.aim_triangles, global_map=cfg.estimate.final_gather > 0,
         batch=cfg.render.batch, batch_rays=ray_budget(frame),
-        page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
+        cache=cfg.cache, fresnel=cfg.render.fresnel,
         normals=frame.normals, shading=frame.shading,
         table={"kind": frame.kind, "albedo": frame.albedo, "reflectance": frame.reflectance,
                "transmittance": frame.transmittance, "ior": frame.ior},

@@ -25,6 +25,7 @@ from tlm.kernels.shade import (
 from tlm.render.frame import (
     Frame,
     GBuffer,
+    new_streams,
     ray_budget,
     shading_normals,
     trace_secondary,
@@ -219,7 +220,7 @@ def walk_pieces(frame: Frame, g: GBuffer, first_kind: str, depth: int, work: dic
     piece by piece in pixel order, are the packet's pixel-major stream. Yields each piece's
     :class:`Walk` (its reads when ``record``, recorded for ``page_words``-word pages; none
     otherwise) and adds the rays' work per pixel to ``work`` (:data:`WALK_WORK`)."""
-    page_words = frame.cfg.cache.block_words if page_words is None else page_words
+    page_words = new_streams(frame).page_words if page_words is None else page_words
     budget = ray_budget(frame)
     spp = g.spp
     start = (g.triangle >= 0) & ~g.sees_light
