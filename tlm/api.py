@@ -125,8 +125,14 @@ OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (tlm.e
 
 @argument_names
 def params() -> list[tuple[str, Any, str]]:
-    """Every config parameter: (dotted key, default, meaning), as ``tlm params`` lists them."""
-    return describe()
+    """Every config parameter: (dotted key, default, meaning), as ``tlm params`` lists them; a key whose
+    value a registry's names select (``estimate.filter``, ``arch.scheduler``) ends with the names it holds
+    now, a plug-in's too (its entry point, or a class registered in this process)."""
+    from tlm.registry import REGISTRIES
+
+    names = {reg.setting: reg.names() for reg in REGISTRIES}
+    return [(key, default, f"{text}; registered now: {', '.join(names[key])}" if key in names else text)
+            for key, default, text in describe()]
 
 
 def configs_dir() -> Path:
@@ -292,10 +298,17 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     default ``arch.programs`` (relative to the config's folder). ``arch`` holds keys of ``arch``
     only: another setting (``render.spp``) would need the render again, and is an InputError
     that says so. ``progress``: True or False.
+
+    ``.warnings``: the simulated stream's warning lines (a list; empty: none), those ``tlm run`` prints and
+    ``results.json`` ``warnings`` holds after the render's (``result.warnings``) for this timing and config
+    (:func:`~tlm.experiments.run_warnings.stream_warnings`): packets too coarse (the granularity caveat), images
+    in flight taking turns, too few frames for a steady throughput, tiles without pixels, an arch key that
+    changes nothing here. An A/B of two ``simulate`` calls reads each one's.
     """
     from tlm.arch.costs import Programs, load_programs
     from tlm.config import ArchConfig
     from tlm.experiments import run as runs
+    from tlm.experiments.run_warnings import stream_warnings
 
     if not isinstance(result, runs.RenderResult):
         raise InputError(f"{type(result).__name__} is not a render: give what render_image returns", key="result")
@@ -322,7 +335,11 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
             raise (_renamed(e, "programs") if e.key == "arch.programs" else e) from None
     else:
         table = runs.programs_for(cfg, result.base)
-    return runs.simulate_run(replace(result, cfg=cfg) if cfg is not result.cfg else result, table, progress)
+    timing = runs.simulate_run(replace(result, cfg=cfg) if cfg is not result.cfg else result, table, progress)
+    # (an attribute of this call's Timing, not a field of the class: tlm.arch.model's Timing knows no config, and
+    # the stream's warnings need it; copy, deepcopy and pickle keep it, as every attribute of a Timing)
+    timing.warnings = stream_warnings(timing, cfg)
+    return timing
 
 
 @argument_names

@@ -232,12 +232,29 @@ def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: s
     The sweep's warnings (:attr:`Outcome.warnings`: a factor no point read, a cache its workers
     could not write, point folders not its own; what ``tlm sweep`` prints) are the table's
     ``attrs["warnings"]``, a list of lines (empty: none); ``warn`` gets each as it is known too.
-    None: nothing is printed, as by :func:`run_sweep`."""
+    None: nothing is printed, as by :func:`run_sweep`. ``attrs["findings"]``: what ``tlm report`` of ``out``
+    says of the sweep, a list of plain lines (:func:`_findings`; empty: no factor or no ok point)."""
     done = run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait, warn=warn,
                      overrides=overrides, reference=reference, say=say)
     table = done.table
     table.attrs["warnings"] = list(done.warnings)
+    table.attrs["findings"] = _findings(done.out)
     return table
+
+
+def _findings(folder: Path) -> list[str]:
+    """What ``tlm report`` of the sweep ``folder`` finds, as plain lines: the code of its summary's
+    (:func:`tlm.report.summary_effects.sweep_findings`: the factor that moves the frame rate most, ties, factors that
+    move with it or change nothing, the best point; then ``error_factor``: the image error's), tags left out."""
+    import html
+    import re
+
+    from tlm.report.collect import read
+    from tlm.report.summary_effects import error_factor, sweep_findings
+
+    inputs = read([Path(folder)])
+    lines = [*sweep_findings(inputs), error_factor(inputs).strip()]
+    return [html.unescape(re.sub(r"<[^>]+>", "", line)) for line in lines if line]
 
 
 @argument_names

@@ -4,7 +4,8 @@ A point's row (:func:`point_row`) is the point (its index, hash, status, error),
 factors, its scene and mode, who ran it (:func:`ran_fields`: the Dask worker's name, the host, the process,
 where its record says), and for a point that ran the fields of its ``results.json``
 (:func:`result_fields`): cycles per PM, fps, SimPy events, whether TThru is steady,
-busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the image
+busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the bottleneck's stall
+cycles per frame by cause (:func:`bottleneck_stalls`), a few work counts (:func:`work_counts`), the image
 error where there is a reference, whether the frame came from the functional cache, and
 host seconds, with their one-off part (``seconds.one_off``: numba compiling, first imports), and
 the seconds of writing its folder (``seconds.write``).
@@ -90,14 +91,17 @@ def ran_fields(record: dict) -> dict[str, Any]:
 
 def result_fields(res: dict) -> dict[str, Any]:
     """An ok point's fields of its row, from its ``results.json``: cycles, fps, SimPy events,
-    whether TThru is steady, utilization, the image error (where there is a reference), whether
-    the frame was cached, host seconds (and their one-off part), the seconds its folder's write took."""
+    whether TThru is steady, utilization, the bottleneck's stalls by cause, work counts, the image error (where
+    there is a reference), whether the frame was cached, host seconds (and their one-off part), the seconds its
+    folder's write took."""
     row: dict[str, Any] = {f"cycles.{k}": v for k, v in res["cycles"].items()}
     row["fps"] = res["fps"]
     row["simpy_events"] = res["timing"]["simpy_events"]
     # whether cycles.throughput is a steady-state TThru (false: a stream too short for one)
     row["throughput_steady"] = res["timing"].get("throughput_estimate", {}).get("steady")
     row.update(utilization(res["timing"]["units"]))
+    row.update(bottleneck_stalls(res["timing"]))
+    row.update(work_counts(res.get("work")))
     err = res.get("error") or {}
     if err.get("available"):
         row["error.rel_mse"] = err.get("rel_mse")
@@ -166,6 +170,59 @@ def utilization(units: dict) -> dict[str, float]:
         for kind, bs in kinds.items():
             out[f"{what}.{kind}"] = round(sum(b[key] / b["elapsed"] if b["elapsed"] else 0.0 for b in bs)
                                           / len(bs), 6)
+    return out
+
+
+def bottleneck_stalls(timing: dict) -> dict[str, Any]:
+    """The bottleneck's stall cycles per frame by cause (h542), from ``results.json`` ``timing``: the unit
+    ``pipe<p>.<pm>`` of the slowest PM kind (``throughput_estimate.slowest_pm``, the one of the largest
+    ``cycles.<pm>``) in the pipeline where it costs a frame most (``timing.pipelines``, the first of equal ones):
+    ``bottleneck.pm``, ``bottleneck.pipeline``, then ``bottleneck.<cause>``, its data stalls of each cause of
+    :data:`~tlm.arch.units.STALL_CAUSES` (``handshake``, ``swap``, ``copy``, ``preemption``, ``fifo_full``,
+    ``fifo_empty``) and ``bottleneck.memory``, its page-miss cycles (``T_ms``, counted in its busy cycles), each
+    over the frames the stream ran (``timing.frames``) and rounded to whole cycles. None where the record does not
+    say (a results.json of an older tlm)."""
+    from fractions import Fraction
+
+    from tlm.arch.units import STALL_CAUSES
+
+    causes = (*STALL_CAUSES, "memory")
+    out: dict[str, Any] = {"bottleneck.pm": None, "bottleneck.pipeline": None}
+    out.update({f"bottleneck.{c}": None for c in causes})
+    pm = (timing.get("throughput_estimate") or {}).get("slowest_pm")
+    pipes = [p if isinstance(p, dict) else {} for p in timing.get("pipelines") or []]
+    frames = timing.get("frames")
+    if not isinstance(pm, str) or not pipes or not isinstance(frames, int) or frames < 1:
+        return out
+    pipe = max(range(len(pipes)), key=lambda p: (pipes[p].get(pm) or 0, -p))
+    unit = (timing.get("units") or {}).get(f"pipe{pipe}.{pm}")
+    out["bottleneck.pm"], out["bottleneck.pipeline"] = pm, pipe
+    if not isinstance(unit, dict):
+        return out
+    got = {**(unit.get("stall") or {}), "memory": unit.get("T_ms")}
+    for c in causes:
+        v = got.get(c)
+        out[f"bottleneck.{c}"] = round(Fraction(v, frames)) if isinstance(v, int) else None
+    return out
+
+
+def work_counts(work: Any) -> dict[str, int | None]:
+    """A few of the frame's work counts (h542), from ``results.json`` ``work``, summed over the passes:
+    ``work.rays`` (eye, secondary and shadow rays), ``work.tri_tests`` (ray-triangle tests, shadow rays' too) and
+    ``work.gathers`` (the photon-map pass's gathers; None where no pass gathers). None where the record has
+    no ``work`` (a results.json of an older tlm)."""
+    out: dict[str, int | None] = {"work.rays": None, "work.tri_tests": None, "work.gathers": None}
+    if not isinstance(work, dict) or not work:
+        return out
+    passes = [c for c in work.values() if isinstance(c, dict)]
+    traced = [c for c in passes if "primary_rays" in c]
+    if traced:
+        out["work.rays"] = sum(int(c.get(k) or 0) for c in traced
+                               for k in ("primary_rays", "secondary_rays", "shadow_rays"))
+        out["work.tri_tests"] = sum(int(c.get(k) or 0) for c in traced for k in ("tri_tests", "shadow_tri_tests"))
+    gathered = [c for c in passes if "gathers" in c]
+    if gathered:
+        out["work.gathers"] = sum(int(c["gathers"] or 0) for c in gathered)
     return out
 
 
