@@ -3,7 +3,8 @@
 The first run given of a scene-mode is the baseline; each other run of it is said against it, B/A: the
 throughput cycles' and the frame rate's ratios, each PM's cycles' ratio, the baseline's bottleneck PM's busy
 share in both (and where the bottleneck moves), and what differs between the two (:func:`differs`: the resolved
-config's keys with both values, the seed, the code's fingerprint, the scene's contents). A ratio within
+config's keys with both values, the seed, the code's fingerprint, the scene's contents), and two photon-map
+runs' image errors, B/A only against one reference (:func:`_error`, h541). A ratio within
 :data:`~tlm.report.summary_effects.NEAR_TIE` of 1 is a tie, as a sweep's points are (its wording: "within
 1%"); cycles alike to the cycle are said as identical. Simulated cycles are deterministic (one config, seed and
 code give the same cycles on any machine), host seconds are not: they are said apart, as the machine's.
@@ -23,6 +24,10 @@ MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pma
 # the versions that compute a run's numbers (provenance.VERSIONS less python): one differing is said as a difference
 VERSIONS = ("tlm", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")
 MAX_DIFFS = 6  # differing keys named in a comparison's line (the rest counted: §9 lists them all)
+# (h541) a difference said but of no effect on what is compared: one scene file named two ways (a built-in scene's
+# name and its file's path), or a setting of the photon-map reference alone, which no simulated cycle reads
+SAME_SCENE = " (one scene file, the same contents)"
+NO_CYCLES = " (the reference's: no cycles)"
 
 
 def groups(inputs: Inputs) -> list[list[Run]]:
@@ -62,7 +67,9 @@ def differs(a: Run, b: Run) -> list[str]:
     for k in [*fa, *(k for k in fb if k not in fa)]:
         va, vb = fa.get(k, "(none)"), fb.get(k, "(none)")
         if va != vb:
-            out.append(f"{k} {_value(k, va)} → {_value(k, vb)}")
+            same = k == "scene" and _one_scene(a, b)
+            out.append(f"{k} {_value(k, va)} → {_value(k, vb)}"
+                       + (SAME_SCENE if same else NO_CYCLES if k.startswith("reference.") else ""))
     if "seed" not in fa and "seed" not in fb and a.results.get("seed") != b.results.get("seed"):
         out.append(f"seed {a.results.get('seed')} → {b.results.get('seed')}")
     ca, cb = a.results.get("code_fingerprint"), b.results.get("code_fingerprint")
@@ -75,6 +82,35 @@ def differs(a: Run, b: Run) -> list[str]:
     if ra and rb and da != db:
         out.append(f"scene contents {str(da).removeprefix('sha256 ')[:8]} → {str(db).removeprefix('sha256 ')[:8]}")
     return out
+
+
+def _one_scene(a: Run, b: Run) -> bool:
+    """Whether runs ``a`` and ``b`` read one scene file of one content, whatever their configs call it (``scene:
+    cornell``, the built-in scene, and ``scene: .../scenes/cornell.yaml``, its file): the same ``scene.source`` and
+    the same recorded ``scene_digest``."""
+    sa, sb = (a.results.get("scene") or {}).get("source"), (b.results.get("scene") or {}).get("source")
+    (da, ra), (db, rb) = scene_digest(a), scene_digest(b)
+    return bool(sa) and sa == sb and ra and rb and da == db
+
+
+def effective(diff: list[str]) -> list[str]:
+    """The differences of :func:`differs` that may change what is compared (not a scene named two ways, not a
+    setting of the reference alone)."""
+    return [d for d in diff if not d.endswith((SAME_SCENE, NO_CYCLES))]
+
+
+def _error(a: Run, b: Run) -> str:
+    """The photon-map image errors of ``a`` and ``b`` (results.json ``error.rel_mse``), B/A where both measured
+    it against one reference (``error.reference``), else said not comparable; "" where either has none."""
+    ea, eb = a.results.get("error"), b.results.get("error")
+    if not (isinstance(ea, dict) and isinstance(eb, dict) and number(ea.get("rel_mse")) and number(eb.get("rel_mse"))):
+        return ""
+    x, y = float(ea["rel_mse"]), float(eb["rel_mse"])
+    ref = ea.get("reference")
+    if isinstance(ref, str) and ref and ref == eb.get("reference") and x > 0:
+        return f"image error (relative MSE) {_ratio(y, x)} ({x:.3g} → {y:.3g}, against one reference)"
+    return (f"image error (relative MSE) {x:.3g} → {y:.3g}, against other references (results.json "
+            "error.reference): not comparable")
 
 
 def _value(key: str, v: Any) -> str:
@@ -124,6 +160,8 @@ def pair_line(a: Run, b: Run) -> str:
         was, now = round(100 * ba[top]), round(100 * bb[top])  # (the step as the two shares are said)
         parts.append(f"A's bottleneck, {PM_METRIC[top]}, busy {was}% → {now}%"
                      f" ({'within a point' if was == now else f'{now - was:+d} points'}){moved}")
+    if err := _error(a, b):
+        parts.append(err)
     same = (a.results.get("cycles") or None) == (b.results.get("cycles") or None) and fa == fb
     if same and a.results.get("cycles"):
         verdict = "identical cycles: a tie"
@@ -133,6 +171,9 @@ def pair_line(a: Run, b: Run) -> str:
         verdict = f"within {NEAR_TIE:.0%} in throughput cycles: a tie"
     else:
         verdict = ""
+    if verdict and fa and fb and abs(fb / fa - 1) > NEAR_TIE:  # (h541: another arch.clock_hz, one cycle count)
+        verdict = verdict.replace(": a tie", ": a tie in cycles") + f", not in frame rate ({_ratio(fb, fa)}: " \
+            "another clock)"
     diff = differs(a, b)
     if not diff and same:
         what = "nothing (one config, seed, code and scene): the same run twice"
@@ -141,8 +182,10 @@ def pair_line(a: Run, b: Run) -> str:
     else:
         shown = diff if len(diff) <= MAX_DIFFS else [*diff[:MAX_DIFFS - 1], f"and {len(diff) - MAX_DIFFS + 1} more"]
         what = "; ".join(shown)
-        if len(diff) > 1:
-            what += f" ({len(diff)} differences: the ratios are their joint effect, no one of them alone)"
+        if len(real := effective(diff)) > 1:
+            what += f" ({len(real)} differences: the ratios are their joint effect, no one of them alone)"
+        elif not real and same:
+            what += ": the same run twice"
     text = (f"<b>{esc(short(b))} against {esc(short(a))}</b> (B/A): " + (esc("; ".join(parts)) or "no cycles")
             + (f"; {verdict}" if verdict else "") + f". What differs: {esc(what)}.")
     return text

@@ -235,7 +235,9 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     keys = sorted(cells, key=lambda k: (_scene_order(k[0]), MODES.index(k[1]) if k[1] in MODES else 9))
     if twice and not thesis:  # (runs compared: in the order given, the baseline first)
         keys = list(cells)
-    rows = "runs" if twice else "scene-modes"
+    # (h541: beside a thesis study its scene-modes are rows too, not runs)
+    rows = "rows (the thesis study's scene-modes and the runs compared)" if twice and thesis else \
+        "runs" if twice else "scene-modes"
     grid = np.array([[cells[k][pm] for pm in PMS] for k in keys])
     fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
     ax = fig.add_subplot()

@@ -137,9 +137,10 @@ def _apart(rows: list[dict], k: str, held: list[str], refs: dict[int, str]) -> b
 
 def _keyed(keys: list[str], refs: dict[int, str]) -> str:
     """Why the image errors of a sweep's points against ``refs``' several references are not compared, in one
-    clause (escaped): the factors ``keys`` that change the reference (:func:`_apart`), where known."""
-    why = (f", {esc(_and(keys))} being part of the reference's key" if len(keys) == 1 else
-           f", {esc(_and(keys))} being parts of the reference's key" if keys else "")
+    clause (escaped): the factors ``keys`` that change the reference (:func:`_apart`), where known: a part of its
+    key, or a factor of a ``zip:`` that moves with one (``photons.count`` zipped with ``photons.max_bounces``), so
+    said as the reference changing with them, not as their being parts of its key (h541)."""
+    why = f", the reference changing with {esc(_and(keys))}" if keys else ""
     return (f"the points measured it against {len(set(refs.values()))} references (results.json error.reference)"
             f"{why}, and errors against different references are not comparable")
 
@@ -614,6 +615,10 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
                      f"ok points{' ranked' * any(unranked)} left out for that); ")
             text += notes + best
+        elif len(rows) == 1:  # (one point ok compares no values: no factor is said to change nothing, h541)
+            err = f" with a relative MSE of {float(rows[0][ERROR]):.3g}" if measured else ""
+            text += (f"its one point ok runs at {rows[0]['fps']:.3g} FPS{err}; one point compares no factor's values, "
+                     "so no factor's effect is measured.")
         elif len({r["fps"] for r in rows}) == 1 and not errs and not kept_ref:  # (a tie everywhere: no best point)
             low = [float(r[ERROR]) for r in measured]
             alike = bool(low) and all(same_value(e, low[0]) for e in low)  # (nor the image error: said so)
