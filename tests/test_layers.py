@@ -41,13 +41,15 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.experiments.error_cost_blur",  # (h483: error-vs-cost's blur warning, once per study, out of error_cost)
      "tlm.experiments.frame_keys",  # (h487: the scene's part of a frame's key, remembered, out of frames)
      "tlm.experiments.sweep_folder",  # (h489: what a sweep finds in its folder from before it, out of sweep)
-     "tlm.experiments.photon_warnings"),  # (h505: the line on paths cut with power in flight, out of run_warnings)
+     "tlm.experiments.photon_warnings",  # (h505: the line on paths cut with power in flight, out of run_warnings)
+     "tlm.experiments.calibrate_fit"),  # (h539: how well tlm calibrate's fit is determined, out of thesis)
     ("tlm.report",
      "tlm.report.written",  # (h477: which files of a run folder its run wrote, the report's only reads)
      "tlm.report.summary_studies",  # (h487: the summary's words on the studies, no figure, out of summary)
      "tlm.report.tradeoff_studies",  # (h487: what the tradeoff section reads of a study, no figure, out of tradeoff)
      "tlm.report.study_tables",  # (h501: a study folder's tables read and checked, out of collect)
-     "tlm.report.compare"),  # (h530: runs of one scene-mode compared, B/A, and what differs, out of summary)
+     "tlm.report.compare",  # (h530: runs of one scene-mode compared, B/A, and what differs, out of summary)
+     "tlm.report.numbers"),  # (h545: how the report writes a number, one rule for its tables, figures and text)
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
      "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)

@@ -85,4 +85,5 @@ def test_a_stream_stopped_below_both_caps_is_no_mismatch_however_its_estimate_re
               "throughput_estimate": {"frames": 20, "window": [1, 17], "frames_cap": 32, "settled": False}}
     assert setting_mismatches("cornell", ours, timing) == []
     timing["frames"] = 32  # (cut by its cap: the thesis's 64 might have run on)
-    assert setting_mismatches("cornell", ours, timing) == ["arch.settle_frames 32 (thesis: 64)"]
+    assert setting_mismatches("cornell", ours, timing) == [
+        "arch.settle_frames 32 (configs/thesis.yaml: 64; not in the thesis)"]

@@ -20,7 +20,7 @@ from tlm.config import to_dict
 from tlm.experiments.run import timing_dict
 from tlm.experiments.thesis_setting import run_mismatches, setting_mismatches, thesis_setting
 
-SAID = "arch.settle_frames 16 (thesis: 64)"
+SAID = "arch.settle_frames 16 (configs/thesis.yaml: 64; not in the thesis)"
 
 
 def _ours(settle: int = 16) -> dict:
@@ -59,7 +59,7 @@ def test_a_run_of_the_frames_asked_only_is_no_mismatch():
 ])
 def test_a_run_that_ran_on_is_a_mismatch_where_its_cap_acted(settle, timing, said):
     got = setting_mismatches("cornell", _ours(settle), timing)
-    assert got == ([f"arch.settle_frames {settle} (thesis: 64)"] if said else []), got
+    assert got == ([f"arch.settle_frames {settle} (configs/thesis.yaml: 64; not in the thesis)"] if said else []), got
 
 
 @pytest.fixture(scope="module")

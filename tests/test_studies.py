@@ -20,9 +20,9 @@ from tlm.experiments.granularity import run_granularity
 from tlm.experiments.run import render
 from tlm.experiments.thesis import (
     COLUMNS,
-    _fit_scale,
-    _fit_scale_and_records,
     calibrate,
+    fit_scale,
+    fit_scale_and_records,
     load_study,
     restrict,
     run_thesis,
@@ -123,13 +123,13 @@ def test_summary_counts_slowest_pm_matches():
 def test_fit_scale_is_the_weighted_least_squares_minimum():
     rng = np.random.default_rng(1)
     n, m, y = rng.uniform(1, 10, 5), rng.uniform(0, 2, 5), rng.uniform(5, 20, 5)
-    s = _fit_scale(n, m, y)
+    s = fit_scale(n, m, y)
 
     def cost(x):
         return float(np.sum(((x * n + m - y) / y) ** 2))
 
     assert cost(s) < cost(s * 1.01) and cost(s) < cost(s * 0.99)
-    assert _fit_scale(n, m + 100 * y, y) == 0.0  # never a negative cost
+    assert fit_scale(n, m + 100 * y, y) == 0.0  # never a negative cost
 
 
 def test_calibrate_fits_and_rewrites_the_table(tmp_path):
@@ -186,10 +186,10 @@ def test_fit_of_scale_and_record_cycles_recovers_them():
     rng = np.random.default_rng(2)
     n, k, m = rng.uniform(1, 10, 4), rng.uniform(1, 10, 4), rng.uniform(0, 1, 4)
     y = 0.7 * n + 3.5 * k + m
-    s, c = _fit_scale_and_records(n, k, m, y)
+    s, c = fit_scale_and_records(n, k, m, y)
     assert s == pytest.approx(0.7) and c == pytest.approx(3.5)
     # never negative: a table that needs less than its records cost gets no per-record cycles
-    s, c = _fit_scale_and_records(n, k, m + 100 * y, y)
+    s, c = fit_scale_and_records(n, k, m + 100 * y, y)
     assert s == 0.0 and c == 0.0
 
 

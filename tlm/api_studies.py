@@ -299,17 +299,18 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
 
 @argument_names
 @imports_whole
-def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
-              ) -> tuple[Programs, dict]:
-    """Fit the PM programs' free parameters to the RCast column of Tables I-III (``tlm
-    calibrate``) of the study file ``path`` (or the built-in study of that name); returns the
-    fitted table and the fit's report (``report["cells"]``)."""
-    from tlm.experiments.thesis import calibrate as fit
+def calibrate(path: str | Path, *, progress: Callable[..., None] | None = None, held_out: bool = False
+              ) -> tuple[Programs | None, dict]:
+    """``tlm calibrate`` of the study ``path`` (a file, or a built-in study's name): the PM programs' free parameters
+    fitted to the RCast column of Tables I-III; the table and the report (``cells``; ``fit``: how well determined).
+    ``held_out`` (``--leave-one-out``): ``(None, each scene's fitted cells by a fit to the others)``, no table."""
+    from tlm.experiments import thesis
 
     progress = callback(progress, "progress", "a function of (iteration, report)")
     path, checked = _study(path, "calibrate")
     with checked:
-        return fit(path, progress=progress)
+        return (None, thesis.leave_one_out(path, progress=progress)) if held_out else thesis.calibrate(path,
+                                                                                                       progress=progress)
 
 
 def tlm_version() -> str:

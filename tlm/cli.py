@@ -33,7 +33,7 @@ from tlm.cli_signals import (
     until_exit,
     writes_files,
 )
-from tlm.cli_tables import GranularityProgress, print_granularity, print_point_warnings
+from tlm.cli_tables import GranularityProgress, fit_lines, held_out_lines, print_granularity, print_point_warnings
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
@@ -391,6 +391,17 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     def progress(it, params):
         print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
+    if args.leave_one_out:  # (a dry run of each fit: no table written)
+        if args.write is not None:
+            raise InputError("--leave-one-out writes no table: drop --write", source=args.config)
+        _, loo = api.calibrate(args.config, held_out=True,
+                               progress=lambda left, it, params: progress(f"{it} without {left}", params))
+        print("\n".join(held_out_lines(loo)))
+        if loo["not_comparable"]:
+            print(escaped("tlm: warning: a fit to another setting than the thesis's measures the setting, not the "
+                          "model: " + "; ".join(f"{s} is {', '.join(w)}" for s, w in loo["not_comparable"].items())),
+                  file=sys.stderr)
+        return 0
     once = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless: a pipe, a named FIFO: read once)
     if not args.dry_run and args.write is None and once in ("a pipe", "a named FIFO"):
         raise InputError(f"is {once}, read once: its own table (base.arch.programs) is found by a read of the study "
@@ -400,6 +411,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     programs, report = api.calibrate(args.config, progress=progress)
     for scene, cells in report["cells"].items():
         print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
+    print("\n".join(fit_lines(report.get("fit") or {})))
     differ = report.get("not_comparable") or {}
     warning = ("tlm: warning: a fit to another setting than the thesis's measures the setting, not the model: "
                + "; ".join(f"{s} is {', '.join(w)}" for s, w in differ.items())) if differ else None

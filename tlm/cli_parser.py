@@ -167,6 +167,9 @@ def calibrate_arguments(ca: argparse.ArgumentParser) -> None:
                     "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
                     "than the thesis's)")
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
+    ca.add_argument("--leave-one-out", action="store_true",
+                    help="a held-out check, writing nothing: fit to all scenes but one, for each scene, and print the "
+                    "left-out scene's fitted cells' |rel error| (median, max) beside the in-sample fit's")
     no_progress(ca, NO_BAR)
 
 

@@ -241,3 +241,45 @@ def yaml_text(value) -> str:
         mantissa = mantissa.rstrip("0")
         return f"{mantissa}{'0' if mantissa.endswith('.') else ''}e{exponent}"
     return flow_text(value)
+
+
+# -- tlm calibrate: how well its fit is determined, and --leave-one-out (h539) ----------------------------------
+
+
+def _g4(v: float | None) -> str:
+    return "none" if v is None else f"{v:.4g}"
+
+
+def fit_lines(stats: dict[str, dict]) -> list[str]:
+    """``tlm calibrate``'s lines on the fit, one per PM (``stats``: PM -> calibrate_fit.fit_statistics)."""
+    lines = []
+    for pm, s in stats.items():
+        n = len(s["parameters"])
+        params = []
+        for p, v in s["parameters"].items():
+            se = s["standard_errors"][p]
+            text = f"{p} {v:.4g} ± {_g4(se)}" if se is not None else f"{p} {v:.4g} (no standard error)"
+            if p in s["on_bound"]:
+                text += " (on its bound 0: the error is the unconstrained fit's)"
+            params.append(text)
+        dof = s["dof"]
+        lines.append(f"  fit {pm}: {n} parameter{'s' if n > 1 else ''} on {s['cells']} cells, {dof} degree"
+                     f"{'' if dof == 1 else 's'} of freedom; in-sample |rel error| median "
+                     f"{s['median_abs_rel_error']:.1%}, max {s['max_abs_rel_error']:.1%}; " + ", ".join(params)
+                     + f"; condition number {s['condition_number']:.3g}")
+    return lines
+
+
+def held_out_lines(loo: dict) -> list[str]:
+    """``tlm calibrate --leave-one-out``'s lines (``loo``: tlm.api.calibrate's ``held_out``)."""
+    lines = ["leave-one-out: each scene's fitted RCast cells predicted by a fit to the other scenes (no table "
+             "written):"]
+    for scene, s in loo["scenes"].items():
+        lines.append(f"  without {scene}: " + ", ".join(f"{k} {v:.4g}" for k, v in s["parameters"].items()))
+        lines.append(f"    {scene:8s} " + "  ".join(f"{m} {c['rel_error']:+.1%} (in-sample {c['in_sample']:+.1%})"
+                                                   for m, c in s["cells"].items()))
+    h, i = loo["held_out"], loo["in_sample"]
+    lines.append(f"  held out: |rel error| median {h['median']:.1%}, max {h['max']:.1%} over {h['cells']} cells; "
+                 f"in-sample (the fit to all {len(loo['scenes'])} scenes): median {i['median']:.1%}, "
+                 f"max {i['max']:.1%}")
+    return lines

@@ -58,9 +58,6 @@ written over the packaged table (:func:`tlm.api.write_calibration`).
 
 from __future__ import annotations
 
-import datetime
-import json
-import re
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -69,11 +66,20 @@ from typing import Any
 
 import numpy as np
 
-from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
-from tlm.arch.model import simulate
+from tlm.arch.costs import PROGRAMMABLE, Programs
 from tlm.config import MODES, RunConfig, config_from_dict, file_folder, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, quoted
+from tlm.experiments.calibrate_fit import fit as _fit
+from tlm.experiments.calibrate_fit import (  # noqa: F401  (those this module does not use: re-exported)
+    fit_scale,
+    fit_scale_and_records,
+    fit_statistics,
+    fitted_parameters,
+    held_out,
+    norm_per_frame,
+    write_calibrated,
+)
 from tlm.experiments.provenance import identities_remembered, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.run_warnings import unread_overrides
@@ -106,6 +112,7 @@ from tlm.experiments.thesis_tables import (  # noqa: F401  (re-exported: their h
     THESIS,
     comparison_rows,
     describe_rows,
+    fitted_cells,
     not_prediction,
     thesis_value,
     with_comparable,
@@ -120,7 +127,7 @@ from tlm.experiments.thesis_text import (  # noqa: F401  (all but fixed: re-expo
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 from tlm.scenes.loader import resolve_scene_path
-from tlm.storage import SAID, write_file
+from tlm.storage import SAID
 from tlm.storage import warn as _warn
 
 
@@ -384,7 +391,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
                     unread.setdefault(item, {})[(names_of(scene), mode)] = why.replace(f"mode {mode!r}", "its mode")
                 for line in results["warnings"]:  # (its own: the --set it never read are not among them)
                     said.setdefault(" ".join(line.split()), []).append(f"{names_of(scene)} {mode}")
-                rows.extend(table_rows(key, table, mode, _ours(results["cycles"], results["fps"])))
+                rows.extend(table_rows(key, table, mode, _ours(results["cycles"], results["fps"]),
+                                       fitted_cells(programs.calibration)))
                 items[f"{key}/{mode}"] = per_item(table, mode, results)
                 if judged is not None:  # (one named as a table's but of another file: 'the scene ...' first)
                     seen = differ.setdefault(key, [])
@@ -451,11 +459,13 @@ def _name(scene: str) -> str:
     return Path(scene).stem
 
 
-def table_rows(key: str, table: str | None, mode: str, ours: dict[str, float]) -> list[dict]:
-    """:func:`comparison_rows` of a study's scene named ``key`` whose table is ``table`` (by its file):
-    without one (None), no thesis value and no cell calibrated, whatever its name (a user's ``room.yaml`` is
+def table_rows(key: str, table: str | None, mode: str, ours: dict[str, float],
+               fitted: frozenset[tuple[str, str]] | None = None) -> list[dict]:
+    """:func:`comparison_rows` of a study's scene named ``key`` whose table is ``table`` (by its file), ``fitted``
+    the cells its instruction table was fitted to (:func:`fitted_cells`; None: the packaged table's): without
+    a table (None), no thesis value and no cell calibrated, whatever its name (a user's ``room.yaml`` is
     not Table II's: nothing was fitted to it)."""
-    rows = comparison_rows(key, mode, ours)
+    rows = comparison_rows(key, mode, ours, fitted)
     return rows if table is not None else [{**r, "thesis": None, "rel_error": None, "calibrated": False} for r in rows]
 
 
@@ -480,31 +490,6 @@ def scene_names(scenes: list[str], folder: Path, source: str, keys: dict | None 
 
 # -- calibration --------------------------------------------------------------------------------
 
-def _fit_scale(n: np.ndarray, m: np.ndarray, y: np.ndarray) -> float:
-    """argmin_s sum(((s n + m - y) / y)^2), s >= 0: the scale of one PM's instructions."""
-    a, b = n / y, (y - m) / y
-    denom = float(a @ a)
-    return max(float(a @ b) / denom, 0.0) if denom > 0 else 1.0
-
-
-def _fit_scale_and_records(n: np.ndarray, k: np.ndarray, m: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """argmin over s, c >= 0 of sum(((s n + c k + m - y) / y)^2): a PM's scale and record cycles."""
-    from scipy.optimize import nnls
-
-    a = np.column_stack([n / y, k / y])
-    (scale, cycles), _ = nnls(a, (y - m) / y)
-    return float(scale), float(cycles)
-
-
-def _norm_per_frame(fns: dict, programs: Programs) -> dict[str, dict[str, float]]:
-    """T_norm per frame of every PM and scene under ``programs``."""
-    out: dict[str, dict[str, float]] = {}
-    for s, (fn, cfg) in fns.items():
-        sim = simulate(fn, programs, cfg.arch)
-        out[s] = {pm: sim.units[f"pipe0.{pm}"]["T_norm"] / len(sim.frames) for pm in FIT_PMS}
-    return out
-
-
 def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs, dict]:
     """Fit the programs' free parameters to the RCast column.
 
@@ -512,7 +497,8 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     ``record_cycles`` together. The cycles of a PM are ``scale x instructions +
     record_cycles x records + (page misses, flushes, swaps, copies, preemption)``; the
     last part barely depends on the parameters, so the fit alternates a closed-form
-    weighted least-squares step with a re-simulation until it settles.
+    weighted least-squares step with a re-simulation until it settles. The report's ``fit``:
+    per PM, how well the fit is determined (:func:`~tlm.experiments.calibrate_fit.fit_statistics`).
 
     Refused (:class:`~tlm.errors.InputError`, before any render): a study without the
     ``rcast`` mode (the only column fitted), a scene without a thesis table (by its file,
@@ -523,6 +509,33 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     ours differs, :func:`mismatches`; empty: the thesis's setting) says whether the fit
     is one to the thesis's setting.
     """
+    inputs = _calibration_inputs(Path(path))
+    programs, history, sims, stats = _fit(inputs, inputs["scenes"], iterations, progress)
+    tables = inputs["tables"]
+    cells = {}
+    for s in inputs["scenes"]:
+        ours = _ours(sims[s].cycles, sims[s].fps)
+        cells[tables[s]] = {m: {"thesis": thesis_value(tables[s], "rcast", m), "ours": round(ours[m], 4)}
+                           for m in FIT_PMS.values()}
+    report = {"scales": programs.scale, "record_cycles": programs.record_cycles, "fitted": fitted_parameters(),
+              "cells": cells, "fit": stats, "iterations": len(history), "history": history,
+              "not_comparable": {s: w for s, w in inputs["differ"].items() if w}}
+    return programs, report
+
+
+def leave_one_out(path: Path, iterations: int = 4, progress=None) -> dict:
+    """A held-out check of :func:`calibrate` (``tlm calibrate --leave-one-out``), writing no table: for each
+    scene, the fit to the others (each a dry run, on the same renders) and the left-out scene's fitted RCast
+    cells under it (``scenes``: scene -> ``parameters``, ``cells``: metric -> ``thesis``, ``ours``,
+    ``rel_error``, ``in_sample``, the fit to every scene's); ``held_out`` and ``in_sample``: the median and
+    max |relative error| of those cells, and of the fit to every scene. It needs three scenes at least (a fit
+    to one is refused, :func:`calibrate`). ``progress``: called ``(scene left out, iteration, parameters)``."""
+    return held_out(_calibration_inputs(Path(path), leave_one_out=True), iterations, progress)
+
+
+def _calibration_inputs(path: Path, leave_one_out: bool = False) -> dict[str, Any]:
+    """:func:`calibrate`'s study checked and rendered: each scene's ``tables`` and ``fns`` (functional run,
+    config), the table it starts from, each PM's instructions and records per frame, ``differ``."""
     base, scenes, modes, folder, keys = _study(Path(path))
     if "rcast" not in modes:
         raise InputError(f"{quoted(modes)} has no rcast: calibrate fits the RCast column only (the other modes' cells "
@@ -535,13 +548,14 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         raise InputError(f"{quoted(unknown)} have no thesis table to calibrate against"
                          + (f" (a scene is a table's by its file, not its name: {'; '.join(named)})" if named else ""),
                          source=str(path), key="scenes")
-    if len(scenes) < 2:
+    if len(scenes) < 2 + leave_one_out:
         raise InputError(f"{quoted(scenes)}: one scene gives one RCast cell per PM, too few for the Traversal and "
-                         "Fragment PMs' two parameters each (scale, record_cycles): list at least two of the "
-                         f"thesis's scenes ({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
+                         "Fragment PMs' two parameters each (scale, record_cycles): list at least "
+                         f"{'three' if leave_one_out else 'two'} of the thesis's scenes"
+                         f"{' (--leave-one-out fits all but one)' if leave_one_out else ''} "
+                         f"({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
     cfgs = {s: config_from_dict({**base, "scene": s, "mode": "rcast"}, str(path)) for s in scenes}
-    cfg0 = cfgs[scenes[0]]
-    programs = programs_for(cfg0, folder)  # a bad instruction table fails before the renders
+    programs = programs_for(cfgs[scenes[0]], folder)  # a bad instruction table fails before the renders
     fns = {}
     differ: dict[str, list[str]] = {}
     for scene in scenes:
@@ -555,86 +569,6 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
                                            clock_hz=cfg.arch.clock_hz, config=to_dict(cfg))
     ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
     # T_norm is linear in the parameters: instructions and records per frame, once
-    instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
-    records = _norm_per_frame(fns, programs.with_scales(zeros, ones))
-    # start from unit scales and no cycles per record where those are fitted (a PM
-    # outside FIT_RECORDS keeps the table's record_cycles, a fixed part of its cost)
-    programs = programs.with_scales(ones, dict.fromkeys(FIT_RECORDS, 0.0))
-    history = []
-    for it in range(iterations):
-        sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
-        scales, cycles = {}, {}
-        for pm, metric in FIT_PMS.items():
-            y = np.array([thesis_value(tables[s], "rcast", metric) * 1e6 for s in scenes])
-            frames = np.array([len(sims[s].frames) for s in scenes], dtype=float)
-            norm = np.array([sims[s].units[f"pipe0.{pm}"]["T_norm"] for s in scenes], dtype=float) / frames
-            other = np.array([sims[s].cycles[pm] for s in scenes], dtype=float) - norm
-            n = np.array([instructions[s][pm] for s in scenes])
-            k = np.array([records[s][pm] for s in scenes])
-            if pm in FIT_RECORDS:
-                scales[pm], cycles[pm] = _fit_scale_and_records(n, k, other, y)
-            else:  # T_norm's record part is fixed here: it joins the rest
-                cycles[pm] = programs.record_cycles[pm]
-                scales[pm] = _fit_scale(n, other + cycles[pm] * k, y)
-        params = {**{f"{p}.scale": v for p, v in scales.items()},
-                  **{f"{p}.record_cycles": cycles[p] for p in FIT_RECORDS}}
-        history.append({"iteration": it, "parameters": params,
-                        "cells": {tables[s]: _ours(sims[s].cycles, sims[s].fps) for s in scenes}})
-        if progress is not None:
-            progress(it, params)
-        converged = all(abs(scales[p] - programs.scale[p]) <= 1e-6 * max(scales[p], 1e-12)
-                        and abs(cycles[p] - programs.record_cycles[p]) <= 1e-6 * max(cycles[p], 1e-12)
-                        for p in scales)
-        programs = programs.with_scales(scales, cycles)
-        if converged:
-            break
-    sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
-    cells = {}
-    for s in scenes:
-        ours = _ours(sims[s].cycles, sims[s].fps)
-        cells[tables[s]] = {m: {"thesis": thesis_value(tables[s], "rcast", m), "ours": round(ours[m], 4)}
-                           for m in FIT_PMS.values()}
-    report = {"scales": programs.scale, "record_cycles": programs.record_cycles, "fitted": fitted_parameters(),
-              "cells": cells, "iterations": len(history), "history": history,
-              "not_comparable": {s: w for s, w in differ.items() if w}}
-    return programs, report
-
-
-def fitted_parameters() -> list[str]:
-    return [f"{pm}.scale" for pm in FIT_PMS] + [f"{pm}.record_cycles" for pm in FIT_RECORDS]
-
-
-def write_calibrated(programs: Programs, report: dict, target: Path, command: str) -> None:
-    """Rewrite the table's ``scale`` and ``record_cycles`` values and ``calibration`` block, keeping its comments."""
-    source = Path(programs.source) if Path(programs.source).exists() else DEFAULT_PATH
-    text = source.read_text(encoding="utf-8")  # (as load_programs reads it, and write_file writes it: UTF-8)
-    for pm in PROGRAMMABLE:
-        section = re.search(rf"^{pm}:\n(?:(?:[ \t].*|)\n)*", text, re.MULTILINE)
-        if section is None:
-            raise ValueError(f"{source}: no '{pm}:' section")
-        body = section.group(0)
-        for name, value in (("scale", programs.scale[pm]), ("record_cycles", programs.record_cycles[pm])):
-            body, n = re.subn(rf"^(  {name}: )[^\n#]*?(?=[ \t]*(?:#|$))", lambda m, v=value: m.group(1) + f"{v:.6g}",
-                              body, count=1, flags=re.MULTILINE)
-            if n != 1 and name == "record_cycles":  # a table without the line: add it below the scale
-                body, n = re.subn(r"^(  scale: [^\n]*\n)",
-                                  lambda m, v=value: m.group(1) + f"  record_cycles: {v:.6g}\n",
-                                  body, count=1, flags=re.MULTILINE)
-            if n != 1:
-                raise ValueError(f"{source}: cannot find '{pm}:' followed by its '{name}:' line")
-        text = text[:section.start()] + body + text[section.end():]
-    cells = "\n".join(
-        f"    {s}: {{" + ", ".join(f"{m}: [{v['thesis']}, {v['ours']}]" for m, v in c.items()) + "}"
-        for s, c in report["cells"].items())
-    block = (
-        "calibration:\n"
-        f"  command: {json.dumps(command)}\n"
-        f"  date: {datetime.date.today().isoformat()}\n"
-        f"  fitted: [{', '.join(report.get('fitted', fitted_parameters()))}]\n"
-        "  cells:  # RCast, millions of cycles: [thesis, ours after the fit]\n"
-        f"{cells}\n"
-    )
-    text, n = re.subn(r"^calibration:[^\n]*\n(?:[ \t]+.*\n)*", block, text, count=1, flags=re.MULTILINE)
-    if n != 1:  # a table without the block: it goes at the end
-        text = text + ("" if text.endswith("\n") else "\n") + block
-    write_file(target, text)  # (atomically, through a hidden temporary file of its own)
+    return {"scenes": scenes, "tables": tables, "fns": fns, "programs": programs, "differ": differ,
+            "instructions": norm_per_frame(fns, programs.with_scales(ones, zeros)),
+            "records": norm_per_frame(fns, programs.with_scales(zeros, ones))}

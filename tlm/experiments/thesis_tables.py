@@ -2,7 +2,8 @@
 prints them (out of :mod:`tlm.experiments.thesis`, which imports every name from here, :func:`ours` as ``_ours``).
 
 * :data:`THESIS` — millions of cycles (FPS in frames per second) per scene, metric and mode;
-  :func:`thesis_value` one cell; :data:`CALIBRATED`, :data:`NOT_PREDICTIONS` (:func:`not_prediction`),
+  :func:`thesis_value` one cell; :data:`CALIBRATED` (of which a table's :func:`fitted_cells`),
+  :data:`NOT_PREDICTIONS` (:func:`not_prediction`),
   :data:`FIT_PMS` and :data:`FIT_RECORDS` what the calibration fits and what is no prediction.
 * :func:`ours` — a run's cycles as the tables' metrics; :func:`comparison_rows` and :func:`with_comparable`
   the rows of ``thesis_comparison.csv`` (:data:`COLUMNS`); :func:`describe_rows` the printout.
@@ -36,6 +37,8 @@ THESIS = {
 }
 METRICS = ("TVert", "TTrav", "Tisct", "TFrag", "TThru", "FPS")
 PM_METRICS = ("TVert", "TTrav", "Tisct", "TFrag")
+# The cells a calibration may fit: the RCast column's (tlm calibrate); which scenes' were fitted is the
+# table's own word, its calibration block's cells (:func:`fitted_cells`), not this set's
 CALIBRATED = {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
 # Held-out cells that are no prediction of their own, each another cell again (in the thesis's
 # tables and in ours alike): the headline median leaves them out (:func:`tlm.experiments.thesis.summarize`),
@@ -77,9 +80,30 @@ def ours(cycles: dict, fps: float) -> dict[str, float]:
     return out
 
 
-def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]:
+def fitted_cells(calibration: dict | None) -> frozenset[tuple[str, str]]:
+    """The cells an instruction table was fitted to, ``(scene, metric)`` of the RCast column, as its
+    ``calibration`` block's ``cells`` name them (``tlm calibrate`` writes one entry per scene it fitted);
+    none for a table without the block (nothing it says was fitted)."""
+    cells = (calibration or {}).get("cells") if isinstance(calibration, dict) else None
+    if not isinstance(cells, dict):
+        return frozenset()
+    metrics = {m for _, m in CALIBRATED}
+    return frozenset((str(s), str(m)) for s, c in cells.items() if isinstance(c, dict) for m in c if m in metrics)
+
+
+def packaged_fitted() -> frozenset[tuple[str, str]]:
+    """:func:`fitted_cells` of the packaged table (``tlm/arch/programs.yaml``)."""
+    from tlm.arch.costs import load_programs
+
+    return fitted_cells(load_programs().calibration)
+
+
+def comparison_rows(scene: str, mode: str, ours: dict[str, float],
+                    fitted: frozenset[tuple[str, str]] | None = None) -> list[dict]:
     """A scene-mode's rows (:data:`COLUMNS` but the last two): ``calibrated`` true only for a cell of
-    :data:`CALIBRATED` with a thesis value (a scene with no table has nothing fitted to it)."""
+    :data:`CALIBRATED` with a thesis value that the table in use was fitted to (``fitted``, its
+    :func:`fitted_cells`; None: the packaged table's). A scene with no table has nothing fitted to it."""
+    fitted = packaged_fitted() if fitted is None else fitted
     rows = []
     for metric in METRICS:
         t = thesis_value(scene, mode, metric)
@@ -87,7 +111,7 @@ def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]
         rows.append({
             "scene": scene, "mode": mode, "metric": metric, "thesis": t, "ours": round(o, 6),
             "rel_error": None if t is None else round((o - t) / t, 6),
-            "calibrated": t is not None and (mode, metric) in CALIBRATED,
+            "calibrated": t is not None and (mode, metric) in CALIBRATED and (scene, metric) in fitted,
         })
     return rows
 

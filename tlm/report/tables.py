@@ -13,7 +13,7 @@ Where the rows come from:
 
 Each table is laid out like the thesis's (metrics as rows, modes as columns); a cell
 shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
-``†`` a calibrated cell (:data:`tlm.experiments.thesis.CALIBRATED`: fitted, not a
+``†`` a calibrated cell (its row's ``calibrated``: fitted by the table the run used, not a
 prediction), ``▲`` the slowest PM of the scene-mode in the thesis, ``●`` the slowest PM
 in ours. A source whose resolution, photon count, sampling
 (eye rays per pixel, light samples), pipeline count or clock differs from the thesis's is
@@ -36,7 +36,6 @@ from tlm.config import MODES
 from tlm.errors import quoted
 from tlm.experiments.provenance import scene_identity
 from tlm.experiments.thesis import (
-    CALIBRATED,
     METRICS,
     PM_METRICS,
     THESIS,
@@ -201,6 +200,21 @@ def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]
     return memo[0]
 
 
+def _fitted(run) -> frozenset[tuple[str, str]] | None:
+    """The cells a run's instruction table was fitted to (:func:`~tlm.experiments.thesis_tables.fitted_cells` of
+    its ``arch.programs``; None: the packaged table's); none where that table can no longer be read."""
+    from tlm.arch.costs import load_programs
+    from tlm.experiments.thesis_tables import fitted_cells
+
+    table = (run.config.get("arch") or {}).get("programs") if isinstance(run.config, dict) else None
+    if table is None:
+        return None
+    try:
+        return fitted_cells(load_programs(table).calibration)
+    except (OSError, ValueError):  # (an InputError is a ValueError: a table moved or changed since the run)
+        return frozenset()
+
+
 def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
     by_scene: dict[str, list[Source]] = {s: [] for s in THESIS}
     in_study: set[Path] = set()
@@ -243,7 +257,7 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
         if not run.results.get("cycles") or run.results.get("fps") is None:
             no_cycles.append(run.label)
             continue
-        rows = comparison_rows(run.scene, run.mode, _ours(run.results["cycles"], run.results["fps"]))
+        rows = comparison_rows(run.scene, run.mode, _ours(run.results["cycles"], run.results["fps"]), _fitted(run))
         key = (run.scene, _config_key(run))
         src = next((s for s in groups.get(key, []) if run.mode not in s.modes), None)
         if src is None:
@@ -337,7 +351,7 @@ def _cell_html(src: Source, mode: str, metric: str, slow: tuple[str | None, str 
     row = src.rows.get((mode, metric))
     if row is None:
         return f'<td data-cell="{cell_id}" class="missing" title="not run">–</td>'
-    cal = bool(row.get("calibrated")) or (mode, metric) in CALIBRATED
+    cal = bool(row.get("calibrated"))  # (the row's own word: the cells its table was fitted to, not CALIBRATED's)
     ours_mark = f' <span class="mark-slow-ours" title="slowest PM in ours">{MARK_SLOW_OURS}</span>' \
         if slow[1] == metric else ""
     thesis_mark = f' <span class="mark-slow-thesis" title="slowest PM in the thesis">{MARK_SLOW_THESIS}</span>' \
@@ -480,7 +494,7 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
 
     def draw(axis, x0, mode, metric, first):
         t = THESIS[scene][metric][MODES.index(mode)]
-        cal = (mode, metric) in CALIBRATED
+        cal = any(bool((src.rows.get((mode, metric)) or {}).get("calibrated")) for src in sources)
         axis.plot([x0], [t], linestyle="none", marker="D" if cal else "o", markersize=6, markerfacecolor="white",
                   markeredgecolor="black", label=("thesis, calibrated cell" if cal else "thesis (Tables I–III)")
                   if first.setdefault(("t", cal), True) else None)
