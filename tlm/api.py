@@ -336,8 +336,8 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     else:
         table = runs.programs_for(cfg, result.base)
     timing = runs.simulate_run(replace(result, cfg=cfg) if cfg is not result.cfg else result, table, progress)
-    # (an attribute of this call's Timing, not a field of the class: tlm.arch.model's Timing knows no config, and
-    # the stream's warnings need it; copy, deepcopy and pickle keep it, as every attribute of a Timing)
+    # (Timing.warnings, None until here: tlm.arch.model's Timing knows no config, and the stream's warnings need it;
+    # copy, deepcopy, pickle and dataclasses.replace keep it, as every field of a Timing)
     timing.warnings = stream_warnings(timing, cfg)
     return timing
 

@@ -377,6 +377,9 @@ class Timing:
     event_budget: int = 0  # the run's stop at its end: min(arch.max_events, event_bound of the frames it started)
     granularity: dict = field(default_factory=dict)  # how far the packets move TThru (granularity_estimate)
     fifo: dict = field(default_factory=dict)  # the FIFOs' peak occupancy (tlm.arch.fifo.fifo_peaks)
+    # the stream's warning lines where tlm.simulate made them (run_warnings.stream_warnings: it knows the config,
+    # this class does not); None: not made here. A field, so dataclasses.replace keeps it too (h547)
+    warnings: list[str] | None = None
 
     def to_dict(self) -> dict:
         """Every figure, by ``results.json``'s names where its ``timing`` holds it (h529): ``simpy_events`` (also

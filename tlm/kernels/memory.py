@@ -93,6 +93,7 @@ reads (:class:`~tlm.kernels.recording.Recorder`, :class:`~tlm.kernels.recording.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields, is_dataclass
 
 import numpy as np
@@ -481,13 +482,19 @@ class Streams:
         """Cold pairs of a run config's ``cache`` section (a :class:`~tlm.config_sections.CacheConfig`, or
         any object with its keys): every key by :data:`CACHE_KEYS`, so every caller (the frame's passes,
         the photon tracer, a study's map key) gets a new key with no change of its own; a key of the
-        section that :data:`CACHE_KEYS` lacks is an error, never dropped."""
-        names = [f.name for f in fields(cache)] if is_dataclass(cache) else list(CACHE_KEYS)
-        unknown = [name for name in names if name not in CACHE_KEYS]
+        section that :data:`CACHE_KEYS` lacks is an error, never dropped. A mapping (the section as a config file
+        gives it) or another object may give some keys only: the others are the defaults (h547)."""
+        if is_dataclass(cache):
+            given = {f.name: getattr(cache, f.name) for f in fields(cache)}
+        elif isinstance(cache, Mapping):
+            given = dict(cache)
+        else:
+            given = {name: getattr(cache, name) for name in CACHE_KEYS if hasattr(cache, name)}
+        unknown = [name for name in given if name not in CACHE_KEYS]
         if unknown:
             raise ValueError(f"cache.{unknown[0]} is no setting of the cache model: give it a Streams setting "
                              f"in tlm.kernels.memory.CACHE_KEYS (docs/architecture.md, 'Changing the cache model')")
-        return cls(**{CACHE_KEYS[name]: getattr(cache, name) for name in names})
+        return cls(**{CACHE_KEYS[name]: value for name, value in given.items()})
 
     def settings(self) -> dict:
         """Every setting (:data:`SETTINGS`) by its :meth:`__init__` name: ``type(self)(**settings())``
