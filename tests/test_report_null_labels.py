@@ -97,7 +97,7 @@ def test_the_findings_say_null(tmp_path):
     (text,) = sweep_findings(Inputs([], sweeps=[Sweep(sw.path, sw.spec, sw.rows, [])]))
     assert f"between its best value ({NULL_LEVELS}) and its worst (8)" in text, text
     # (30.01 and 30.16 FPS, 0.5% apart: a tie within 1%, h509)
-    assert (f"2 points tie within 1% as the best, at 30 to 30.2 FPS: bsp.levels = {NULL_LEVELS}, any "
+    assert (f"2 points tie within 1% as the best, at 30.0 to 30.2 FPS: bsp.levels = {NULL_LEVELS}, any "
             "arch.fifo_depth.") in text, text
     assert "None" not in text
 

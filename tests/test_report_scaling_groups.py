@@ -69,8 +69,9 @@ def test_the_summary_says_how_a_sweep_over_pipelines_scales(sweeps, tmp_path, mo
     monkeypatch.setattr(summary, "save", lambda fig, out, name, *a, **k: (
         drawn.setdefault(name, [ax.get_ylabel() for ax in fig.axes]), save(fig, out, name, *a, **k))[1])
     lead = _words(summary_section(inputs, tmp_path).lead)
-    # (its curves are the static scheduler's unless one names another: the axis says so, h484)
-    assert drawn["summary_scaling.png"] == ["speed-up of TThru (static tiles unless named)"]
+    # (its curves are the static scheduler's unless one names another: the caption says so, h484; on the axis it
+    # was cut off, h546)
+    assert drawn["summary_scaling.png"] == ["speed-up of TThru"]
     assert "No eq. 5.2" not in lead
     said = re.search(r"Does it scale: cornell (\d+\.\d)x at N = 4 ", lead)
     assert said, lead

@@ -107,7 +107,7 @@ def test_the_summary_says_a_row_with_no_frame_time_above_0_is_not_drawn(tmp_path
 def test_the_summary_draws_an_error_of_0_at_the_floor_and_says_so(tmp_path, monkeypatch):
     """The patch's own claim (before it: the 0 was drawn nowhere, unsaid): at a tenth of the least positive."""
     text, fig, ax, points = _summary(tmp_path, monkeypatch, _rows([0.3, 0.0, 0.02]))
-    assert ax.get_yscale() == "log" and points["mvoxel"] == [(0.02, pytest.approx(0.002))]
+    assert ax.get_yscale() == "log" and points["mvoxel"] == [(20.0, pytest.approx(0.002))]  # (ms: h546)
     assert points["error 0, drawn at 0.002"] == [(0, 0.002), (1, 0.002)]  # (the dotted line, in the key)
     assert "; 1 of them with an error of 0, which a log axis cannot show: drawn at 0.002 (the dotted line)" \
         in fig.caption

@@ -55,7 +55,7 @@ from tlm.config_words import listing
 from tlm.errors import LINE_ESCAPES, InputError
 from tlm.storage_json import escaped
 
-# Okabe-Ito colours, ordered so that neighbours differ in luminance (greyscale-safe)
+# Okabe-Ito colours, colour-blind safe; in greyscale orange/sky blue and green/pink look alike: dash, marker, hatch tell
 COLOURS = ("#000000", "#E69F00", "#0072B2", "#F0E442", "#D55E00", "#56B4E9", "#009E73", "#CC79A7")
 HATCHES = ("", "///", "...", "xxx", "\\\\\\", "+++", "ooo", "---")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -98,8 +98,9 @@ def linestyle(i: int):
 
 
 def line_style(i: int) -> dict:
-    """Keyword arguments of ``ax.plot`` for series ``i``: colour, marker and dash differ."""
-    return {"color": colour(i), "marker": marker(i), "linestyle": linestyle(i), "markersize": 5}
+    """Keyword arguments of ``ax.plot`` for series ``i``: colour, marker, dash differ; yellow's markers edged dark."""
+    c, edge = colour(i), "0.15" if colour(i) == COLOURS[3] else colour(i)
+    return {"color": c, "marker": marker(i), "linestyle": linestyle(i), "markersize": 5, "markeredgecolor": edge}
 
 
 def bar_style(i: int) -> dict:
@@ -108,11 +109,10 @@ def bar_style(i: int) -> dict:
 
 
 def legend_below(ax, fontsize: float = 7, ncol: int = 1):
-    """The legend of ``ax`` under the axes (below the x label), where it covers no data.
-
-    With the figure's constrained layout the axes shrink to leave it room."""
-    return ax.legend(fontsize=fontsize, ncol=ncol, loc="upper center", bbox_to_anchor=(0.5, -0.14),
-                     borderaxespad=0.0)
+    """The legend of ``ax`` under its tick labels and x label, covering nothing (the layout shrinks the axes)."""
+    drop = 1.6 * ax.xaxis.get_major_ticks()[0].label1.get_size() + 1.3 * ax.xaxis.label.get_size() + 14  # (points)
+    return ax.legend(fontsize=fontsize, ncol=ncol, loc="upper center", bbox_to_anchor=(0.5, 0), borderaxespad=0.0,
+                     bbox_transform=matplotlib.transforms.offset_copy(ax.transAxes, ax.figure, y=-drop, units="points"))
 
 
 def log_ticks(ax, axis: str = "x") -> None:

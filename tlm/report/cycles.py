@@ -41,6 +41,7 @@ from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, count, new_figure, save, some
 from tlm.report.compare import groups
 from tlm.report.names import value_text
+from tlm.report.numbers import sig, whole
 from tlm.report.written import kept
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
@@ -232,7 +233,7 @@ def breakdown_figure(run: Run, out: Path, name: str | FigureName, ceiling: float
         bottom += v
     if bd.throughput:
         ax.axhline(bd.throughput / scale, color="black", linestyle="--", linewidth=1.0,
-                   label=f"TThru (frame period): {bd.throughput / scale:.4g}")
+                   label=f"TThru (frame period): {sig(bd.throughput / scale)}")
     ax.set_xticks(x, bd.labels, fontsize=8)
     ax.set_ylim(0, 1.06 * max(top, bd.throughput) / scale or 1.0)
     ax.set(xlabel="Processing Module", ylabel=f"{unit} per frame")
@@ -537,10 +538,11 @@ def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
     if frame_times:
         handles.append(ax.plot([], [], color="black", linestyle=":", linewidth=0.8, label="a frame is done")[0])
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    caption = (f"From trace.json ({g.slices} slices over {g.end} cycles, {len(frame_times) or 'the'} simulated "
-               f"frames); adjacent slices of one state merged; a span shorter than a pixel is drawn one pixel wide.")
+    caption = (f"From trace.json ({whole(g.slices)} slices over {whole(g.end)} cycles, {len(frame_times) or 'the'} "
+               f"simulated frames); adjacent slices of one state merged; a span shorter than a pixel is drawn one "
+               f"pixel wide.")
     if coarse:
-        caption += (f" {g.rects()} spans are more than the picture can show: each of {BINS} columns of a row "
+        caption += (f" {whole(g.rects())} spans are more than the picture can show: each of {BINS} columns of a row "
                     f"shows the state other than idle that fills most of it (idle only where nothing else "
                     f"happens).")
     return save(fig, out, name, f"{run.title}: timeline of every unit", _point(run) + caption)

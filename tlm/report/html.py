@@ -4,7 +4,10 @@ Every figure is embedded (a base64 PNG) and also links to its PNG file beside th
 so the page opens anywhere on its own and the figures stay usable one by one (the link is the
 file's name, percent-encoded). Where the report also wrote the figure as PDF or SVG
 (``tlm report --formats``), its caption ends with a link to each of those files. The page
-references nothing else: no scripts, no style sheets, no fonts from the network.
+references nothing else: no scripts, no style sheets, no fonts from the network. Its one style
+sheet, :data:`CSS`, is in its head, the thesis tables' rules (``.tlm-tables``) too: a ``<style>`` in
+the body is not HTML, and text copied from the page would carry it. Mailed alone, the page shows every
+figure; its links to the figures' files need its folder beside it.
 """
 
 from __future__ import annotations
@@ -33,6 +36,11 @@ th { background: #eee; } td.l, th.l { text-align: left; }
 pre { background: #f6f6f6; padding: .6em; overflow-x: auto; font-size: .8em; }
 details { margin: .4em 0; } summary { cursor: pointer; }
 nav ol { columns: 2; }
+.tlm-tables table { border-collapse: collapse; margin: .6em 0 .3em 0; font-size: .9em; }
+.tlm-tables th, .tlm-tables td { border: 1px solid #888; padding: .2em .5em; text-align: right; vertical-align: top; }
+.tlm-tables caption { text-align: left; font-weight: bold; padding-bottom: .3em; }
+.tlm-tables .thesis { color: #555; } .tlm-tables .err { font-style: italic; }
+.tlm-tables .not-comparable { color: #a00; font-weight: normal; } .tlm-tables td.calibrated { background: #eee; }
 """
 
 

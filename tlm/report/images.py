@@ -194,7 +194,7 @@ def _draw(rows: list[Row], title: str, out: Path, name: FigureName, caption: str
                 spine.set_visible(panel.image is not None)
             ax.set_title(MODE_TITLE[panel.mode], fontsize=9)
             if panel.image is not None:
-                ax.imshow(panel.image, interpolation="nearest")
+                ax.imshow(panel.image, interpolation="none")
                 if panel.remark:
                     ax.set_xlabel(textwrap.fill(panel.remark, WRAP, expand_tabs=False), fontsize=6.5)
             else:
@@ -280,12 +280,12 @@ def error_figure(run: Run, out: Path):
         signed = signed_difference(written, DIFFERENCE_COLOURS_BEFORE)
     fig = new_figure(7.0, 3.4)
     axes = fig.subplots(1, 2)
-    axes[0].imshow(_read_png(frame_png), interpolation="nearest")
+    axes[0].imshow(_read_png(frame_png), interpolation="none")
     if signed is None:
-        axes[1].imshow(written, interpolation="nearest")
+        axes[1].imshow(written, interpolation="none")
     else:
         cmap = LinearSegmentedColormap.from_list("tlm_difference", DIFFERENCE_COLOURS)
-        shown = axes[1].imshow(signed * scale, cmap=cmap, norm=Normalize(-scale, scale), interpolation="nearest")
+        shown = axes[1].imshow(signed * scale, cmap=cmap, norm=Normalize(-scale, scale), interpolation="none")
         bar = fig.colorbar(shown, ax=axes[1], shrink=0.85)
         bar.set_label("radiance difference", fontsize=8)
         bar.ax.tick_params(labelsize=7)

@@ -25,6 +25,7 @@ from tlm.report.common import Section, count, some
 from tlm.report.compare import differs_html
 from tlm.report.html import esc
 from tlm.report.names import digest_notes, same_file, scene_digest, shown_paths
+from tlm.report.numbers import exact, sig
 
 VERSIONS = ("tlm", "python", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")  # (kernels: numba or numpy)
 MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
@@ -40,10 +41,11 @@ def _seconds(host: dict | None) -> float | None:
 
 
 def _seconds_text(v) -> str:
-    """Seconds to 3 significant digits, as a reader writes them: ``14.7``, ``3.50``, ``0.0412``, ``1234``."""
+    """Seconds to 3 significant digits, as a reader writes them: ``14.7``, ``3.50``, ``0.0412``, from 100 up
+    whole, thousands separated: ``1,234`` (:mod:`tlm.report.numbers`)."""
     if not isinstance(v, int | float) or isinstance(v, bool):
         return str(v)
-    return f"{v:.0f}" if abs(v) >= 100 else f"{v:#.3g}".rstrip(".")
+    return f"{v:,.0f}" if abs(v) >= 100 else sig(v, 3)
 
 
 def _per_scene(seconds) -> str:
@@ -176,11 +178,13 @@ NOT_HERE = " (not recorded, and its scene file is not on this machine)"  # (no d
 
 
 def _text(v) -> str:
-    """A recorded value as a reader writes it: a triple ``0.725 0.71 0.68``, a number ``1.5``, text as it is."""
+    """A recorded value as a reader writes it: a triple ``0.725 0.71 0.68``, a number ``1.5``, text as it is;
+    a number as recorded, not rounded, thousands separated (:func:`~tlm.report.numbers.exact`: a light's power
+    ``1,100,000 950,000 750,000``, not ``1.1e+06 950000 750000``)."""
     if isinstance(v, list) and v and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v):
-        return " ".join(f"{x:g}" for x in v)
-    if isinstance(v, float):
-        return f"{v:g}"
+        return " ".join(exact(x) for x in v)
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return exact(v)
     if isinstance(v, list):
         return ", ".join(_text(x) for x in v)
     if isinstance(v, dict):

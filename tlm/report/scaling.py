@@ -40,6 +40,7 @@ from tlm.report.common import (
     colour,
     count,
     figure_name,
+    legend_below,
     marker,
     new_figure,
     short_keys,
@@ -392,7 +393,7 @@ def plot_idle(scene: str, pms: list[str], points: list[dict], path: Path, source
     ax.set(xlabel="pipelines N", ylabel="idle fraction of the elapsed cycles",
            title=wrap_title(f"{scene}: idle fraction per PM, {' against '.join(scheds)}{where}", 8.0))
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=len(scheds))
+    legend_below(ax, ncol=len(scheds))
     write_png(fig, path)
 
 

@@ -39,7 +39,7 @@ import numpy as np
 from tlm.config import ArchConfig
 from tlm.experiments.thesis import THESIS_SCENES, median_words, slowest_words
 from tlm.report.collect import Inputs, Run, with_set
-from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save, some
+from tlm.report.common import Figure, Section, bar_style, legend_below, line_style, log_ticks, new_figure, save, some
 from tlm.report.compare import compare_lines
 from tlm.report.compare import groups as compare_groups
 from tlm.report.compare import short as compared_name
@@ -372,8 +372,9 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_xscale("log", base=2)
     ax.set_yscale("log", base=2)
     ax.set_xlabel("pipelines N")
-    ax.set_ylabel("speed-up of TThru (static tiles unless named)")
-    caption = "speed-up of the throughput with the static scheduler; grey: the ideal N"
+    ax.set_ylabel("speed-up of TThru")
+    caption = ("speed-up of the throughput TThru against N = 1, static tiles unless a line names its scheduler; "
+               "grey: the ideal N")
     if len(curves) > SCALING_LINES:  # (the legend under the plot, its labels wrapped: legend_under)
         legend_under(fig, ax, *SIZE)
         caption += (f"; of {len(curves)} curves ({len(lines)} distinct), those of the "
@@ -381,7 +382,7 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                     "largest N are drawn (§3's notes name the rest; sweep.csv holds every point)"
                     if len(drawn) < len(lines) else f"; {len(curves)} curves, {len(lines)} distinct")
     else:
-        ax.legend(fontsize=7)
+        legend_below(ax)
     f = save(fig, out, "summary_scaling.png", "Scaling with N pipelines", caption)
     gains = [(name if k == 1 else f"{name} and {k - 1} more (identical)", n[-1], sp[-1]) for name, n, sp, k in lines]
     if len(lines) <= SCALING_LINES:
@@ -464,7 +465,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     shown = np.isfinite(drawn)
     apart = False  # (the k-NN reference drawn: hollow, its own key, as its frame time leaves out its search)
     for name in [n for n in series if any(k and series_of(r) == n for r, k in zip(rows, shown, strict=True))]:
-        xy = sorted(((r["frame_seconds"], y) for r, y, k in zip(rows, drawn, shown, strict=True)
+        xy = sorted(((r["frame_seconds"] * 1e3, y) for r, y, k in zip(rows, drawn, shown, strict=True)
                      if k and series_of(r) == name), key=lambda p: p[0])
         knn = any(unmodelled_cost(r) for r in rows if series_of(r) == name)
         apart |= knn
@@ -476,9 +477,9 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     if log_y:
         ax.set_yscale("log")
         log_ticks(ax, "y")
-    ax.set_xlabel("simulated frame time (s)")
+    ax.set_xlabel("simulated frame time TThru / clock (ms)")
     ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
-    ax.legend(fontsize=7)
+    legend_below(ax)
     f = save(fig, out, "summary_tradeoff.png", "Error against frame time",
              "each point: one photon count, radius or k of a filter (with final gathering, when on, a series "
              "of its own" + ("; each study's points a series of their own, named by its folder and the --set "

@@ -28,6 +28,7 @@ from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, some
 from tlm.report.html import esc
 from tlm.report.names import value_text
+from tlm.report.numbers import sig
 from tlm.report.summary_points import and_ as _and
 from tlm.report.summary_points import number as _number
 from tlm.report.sweep_lines import same_value
@@ -281,7 +282,7 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
     digits = max(_digits([r["fps"] for r in at_top]), _digits([r["fps"] for r in firsts]))
     least = ("" if low is None else
              f"the least image error (relative MSE {low:.3g}) of the {len(at_top)} points "
-             + (f"within {NEAR_TIE:.0%} of the highest frame rate ({top:.{digits}g} FPS)" if within else
+             + (f"within {NEAR_TIE:.0%} of the highest frame rate ({sig(top, digits, zeros=False)} FPS)" if within else
                 "tied at that frame rate"))
     errs = [float(r[ERROR]) for r in _measured(rows)]
     lowest = min(errs) if errs else None
@@ -312,17 +313,19 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
 
 def _digits(fps: list[float]) -> int:
     """The significant figures that say the frame rates ``fps`` apart: three, or as many more as part the lowest
-    and the highest (``101.8`` and ``102``, not ``102`` and ``102``); three where they are one (to 1e-9)."""
+    and the highest (``101.8`` and ``102.0``, not ``102`` and ``102``); three where they are one (to 1e-9)."""
     lo, hi = min(fps), max(fps)
-    return 3 if same_value(lo, hi) else next((d for d in range(3, 10) if f"{lo:.{d}g}" != f"{hi:.{d}g}"), 10)
+    return 3 if same_value(lo, hi) else next((d for d in range(3, 10) if sig(lo, d) != sig(hi, d)), 10)
 
 
 def _fps_range(fps: list[float], digits: int | None = None) -> str:
-    """Frame rates said at once: one (to 1e-9) ``411 FPS``, else the lowest to the highest (``101.8 to 102 FPS``),
-    to ``digits`` significant figures (:func:`_digits` of ``fps`` where not given)."""
+    """Frame rates said at once: one (to 1e-9) ``411 FPS``, else the lowest to the highest (``101.8 to 102.0 FPS``),
+    to ``digits`` significant figures (:func:`_digits` of ``fps`` where not given): a range's ends with their
+    trailing zeros, as the tables keep them, so that both show the digits that part them (``13.00 to 13.02 FPS``,
+    not ``13 to 13.02``; :func:`~tlm.report.numbers.sig`); one rate as a sentence says it (``12 FPS``)."""
     lo, hi = min(fps), max(fps)
     d = _digits(fps) if digits is None else digits
-    return f"{hi:.{d}g} FPS" if same_value(lo, hi) else f"{lo:.{d}g} to {hi:.{d}g} FPS"
+    return f"{sig(hi, d, zeros=False)} FPS" if same_value(lo, hi) else f"{sig(lo, d)} to {sig(hi, d)} FPS"
 
 
 def _near(groups: list[list[dict]], rows: list[dict], factors: list[str], digits: int | None = None) -> str:

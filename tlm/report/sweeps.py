@@ -79,6 +79,26 @@ LABEL_COMBOS = 3  # a legend label of more than MAX_SERIES identical combination
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its legend
 LEVELS_SIZE = (13.0, 4.8)  # inches, the BSP-levels figure without its legend
+# a swept key's name and unit on a figure's axis, where tlm knows them (else the dotted key alone): axis_label
+AXIS_NAMES = {
+    "arch.fifo_depth": ("FIFO depth", "entries"), "arch.pipelines": ("pipelines N", ""),
+    "arch.packet_size": ("packet size", "rays, pixels or photons"), "arch.clock_hz": ("clock", "Hz"),
+    "arch.page_miss_cycles": ("page-miss time T_ms", "cycles"), "arch.flush_cycles": ("flush time T_ps", "cycles"),
+    "arch.swap_cycles": ("swap time", "cycles"), "arch.context_switch_cycles": ("context switch", "cycles"),
+    "arch.copy_words_per_cycle": ("block copy rate", "128-bit words per cycle"),
+    "arch.tiles_per_pipeline": ("tiles per pipeline", ""), "cache.pairs": ("cache block pairs per PM", ""),
+    "cache.block_words": ("cache block", "128-bit words"), "bsp.levels": ("BSP levels", ""),
+    "photons.count": ("photons emitted", ""), "photons.max_bounces": ("photon bounces", "surface hits"),
+    "estimate.radius": ("search radius", "scene units"), "estimate.k": ("k-voxel samples k", ""),
+    "estimate.final_gather": ("final-gather rays", "per gather point"), "estimate.k_nearest": ("k nearest", ""),
+}
+
+
+def axis_label(factor: str) -> str:
+    """``factor`` on a figure's axis: its name and unit where tlm knows them (``FIFO depth (arch.fifo_depth,
+    entries)``, :data:`AXIS_NAMES`), else the dotted key."""
+    name, unit = AXIS_NAMES.get(factor, ("", ""))
+    return f"{name} ({factor}{', ' + unit if unit else ''})" if name else factor
 
 
 # a sweep row's image error against the point's reference (sweep.csv), and its column's head in the points table
@@ -324,7 +344,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     fps = [r["fps"] for r in ok]
     if min(fps) > 0 and max(fps) / min(fps) >= 100:
         ax.set_yscale("log")
-    ax.set(xlabel=factor, ylabel="simulated frames per second (FPS)",
+    ax.set(xlabel=axis_label(factor), ylabel="simulated frames per second (FPS)",
            title=f"{sw.label}: simulated FPS against {factor}")
     ax.grid(True, which="both", alpha=0.3)
     legend_under(fig, ax, *FACTOR_SIZE)
@@ -567,7 +587,7 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
     levels = sorted({p["level"] for pts in series.values() for p in pts})
     for ax in (ratio_ax, fps_ax):
         ax.set_xticks(levels, [str(v) for v in levels])
-        ax.set_xlabel("BSP levels (bsp.levels)")
+        ax.set_xlabel(axis_label(LEVELS))
         ax.grid(True, which="both", alpha=0.3)
     legend_under(fig, ratio_ax, *LEVELS_SIZE)  # (one legend for both panels, under them: a label naming many
     # combinations would cover the lines inside a panel)

@@ -52,6 +52,7 @@ from tlm.experiments.thesis import (
 from tlm.report.collect import Inputs, Run, Study
 from tlm.report.common import Section, line_style, new_figure, save, some, untangle
 from tlm.report.names import same_file, shown_paths
+from tlm.report.numbers import printed, sig
 from tlm.report.sweep_lines import column_texts
 from tlm.scenes.loader import scenes_dir
 
@@ -69,8 +70,20 @@ MAX_FIGURE_SOURCES = 4  # sources drawn in a scene's figure
 
 
 def fmt(v: float | None) -> str:
-    """A table value: four significant digits (the thesis gives three or four)."""
-    return "–" if v is None else f"{v:.4g}"
+    """Our value in a table: four significant digits, trailing zeros kept, from 1,000 up whole and
+    thousands separated (:func:`~tlm.report.numbers.sig`: ``6.410``, ``93.60``, ``11,920``)."""
+    return "–" if v is None else sig(v)
+
+
+def fmt_thesis(v: float | None, scene: str = "", mode: str = "", metric: str = "") -> str:
+    """The thesis's value in a table as the thesis prints it: :data:`THESIS`'s literal of the cell where
+    ``v`` is it (``43.0``, ``110``, ``3.037``: its own digits, not padded to four), else ``v`` to four
+    significant digits without trailing zeros."""
+    if v is None:
+        return "–"
+    given = THESIS.get(scene, {}).get(metric)
+    lit = given[MODES.index(mode)] if given and mode in MODES else None
+    return printed(lit) if lit is not None and float(lit) == float(v) else sig(v, zeros=False)
 
 
 def fmt_error(e: float | None) -> str:
@@ -334,15 +347,7 @@ def study_summaries(inputs: Inputs, sources: dict[str, list[Source]] | None = No
 
 # -- HTML ---------------------------------------------------------------------------------------
 
-STYLE = """<style>
-.tlm-tables table{border-collapse:collapse;margin:0.6em 0 0.3em 0;font-size:0.9em}
-.tlm-tables th,.tlm-tables td{border:1px solid #888;padding:0.2em 0.5em;text-align:right;vertical-align:top}
-.tlm-tables caption{text-align:left;font-weight:bold;padding-bottom:0.3em}
-.tlm-tables .thesis{color:#555}
-.tlm-tables .err{font-style:italic}
-.tlm-tables .not-comparable{color:#a00;font-weight:normal}
-.tlm-tables td.calibrated{background:#eee}
-</style>"""
+# (the tables' style, .tlm-tables, is in the page's head: tlm.report.html.CSS; a <style> in the body is not HTML)
 
 
 def _cell_html(src: Source, mode: str, metric: str, slow: tuple[str | None, str | None]) -> str:
@@ -360,7 +365,7 @@ def _cell_html(src: Source, mode: str, metric: str, slow: tuple[str | None, str 
         if cal else ""
     cls = ' class="calibrated"' if cal else ""
     return (f'<td data-cell="{cell_id}"{cls}><span class="ours">{e(fmt(row["ours"]))}</span>{ours_mark}<br>'
-            f'<span class="thesis">{e(fmt(row["thesis"]))}</span>{thesis_mark}<br>'
+            f'<span class="thesis">{e(fmt_thesis(row["thesis"], src.scene, mode, metric))}</span>{thesis_mark}<br>'
             f'{_error_html(src, row)}{cal_mark}</td>')
 
 
@@ -427,6 +432,16 @@ PER_ITEM = (("trav_cycles_per_ray", "TTrav per ray"), ("tests_per_ray", "triangl
             ("frag_cycles_per_pixel", "TFrag per pixel"), ("vert_cycles_per_triangle", "TVert per triangle"))
 
 
+def _column(values: list) -> list[str]:
+    """A column of the per-item table: its numbers as :func:`fmt` writes a table's (``273.9``, ``1,112``), or,
+    where :func:`~tlm.report.sweep_lines.column_texts` writes the column in scientific notation (numbers
+    spanning 0.001 to 10 million), all of them so: one notation a column."""
+    texts = column_texts(values, fmt)
+    if any("e" in t for v, t in zip(values, texts) if isinstance(v, int | float) and not isinstance(v, bool)):
+        return texts
+    return [fmt(v) if isinstance(v, int | float) and not isinstance(v, bool) else t for v, t in zip(values, texts)]
+
+
 def per_item_html(label: str, per_item: dict, names: dict[str, str] | None = None) -> str:
     """A thesis study's PM times per work item (``thesis_summary.json`` ``per_item``): ours
     and, in brackets, the thesis's time over our count of the same item. ``names``: each
@@ -438,10 +453,10 @@ def per_item_html(label: str, per_item: dict, names: dict[str, str] | None = Non
              + "<th>tests per leaf</th></tr></thead>", "<tbody>"]
     items = list(per_item.values())
     n = len(items)
-    # each column's numbers, ours and the thesis's, in one notation (column_texts: not 1381 beside 3.453e+04)
-    texts = {k: column_texts([it["ours"].get(k) for it in items] + [it["thesis"].get(k) for it in items], fmt)
+    # each column's numbers, ours and the thesis's, in one notation (_column: not 1381 beside 3.453e+04)
+    texts = {k: _column([it["ours"].get(k) for it in items] + [it["thesis"].get(k) for it in items])
              for k, _ in PER_ITEM}
-    leaf = column_texts([it.get("tests_per_leaf") for it in items], fmt)
+    leaf = _column([it.get("tests_per_leaf") for it in items])
     for i, (cell, it) in enumerate(per_item.items()):
         scene, _, mode = str(cell).rpartition("/")
         cell = f"{(names or {}).get(scene, scene)}/{mode}" if scene else cell
@@ -470,11 +485,12 @@ def fidelity_html(out: Path) -> str:
     folder ``out`` where ``out`` is inside the source checkout that holds the page (the committed ``plots/``:
     ``../docs/fidelity.md#by-cell``, which moves with the checkout); its name alone elsewhere: in an installed
     copy, which ships no docs, and for a report outside the checkout (``/tmp/r``), whose link would climb to the
-    checkout's place on this machine and lead nowhere once the folder is copied or moved (h302)."""
+    checkout's place on this machine and lead nowhere once the folder is copied or moved (h302). Either way the
+    page names the file in words, "in tlm's source", so that a page mailed without the checkout still says where."""
     words = "docs/fidelity.md, “By cell”"
     if FIDELITY_DOC.is_file() and Path(out).resolve().is_relative_to(FIDELITY_DOC.parents[1]):
         href = quote(os.path.relpath(FIDELITY_DOC, Path(out).resolve()).replace(os.sep, "/")) + "#" + FIDELITY_PART
-        words = f'<a href="{html.escape(href)}">{html.escape(words)}</a>'
+        words = f'<a href="{html.escape(href)}">{html.escape(words)}</a> in tlm\'s source'  # (named: a mailed page)
     else:
         words = f"{html.escape(words)} in tlm's source"
     return (f'<p class="legend">Why a cell is far from the thesis: each kind of cell, how far ours is and the '
@@ -603,7 +619,7 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
                           "file is not one, even one "
                           f"named {', '.join(list(THESIS_SCENES)[:-1])} or {list(THESIS_SCENES)[-1]})")
         return section
-    parts = ['<div class="tlm-tables">', STYLE]
+    parts = ['<div class="tlm-tables">']
     for study, summary in study_summaries(inputs, sources):
         parts.append(f'<p class="study-summary">Thesis study {html.escape(study.path.name)}: '
                      f"{html.escape(_line(summary))}.</p>")

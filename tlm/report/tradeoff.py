@@ -53,6 +53,7 @@ from tlm.report.common import (
     Section,
     colour,
     count,
+    legend_below,
     linestyle,
     log_ticks,
     marker,
@@ -481,6 +482,7 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
     floor = float(positive.min()) / 10 if log_y else 0.0
     fig = new_figure(8.5, 5.2)
     ax = fig.subplots()
+    sizes = []  # (each point's packet size, placed where it covers no other label or marker: untangle)
     for i, (label, size, secs, err) in enumerate(data):
         y = np.where(err > 0, err, floor)
         ax.plot(secs, y, color=colour(i), marker=marker(i), linestyle=linestyle(i), markersize=6, label=label,
@@ -489,7 +491,7 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
         ax.scatter(secs[zero], y[zero], s=80, facecolors="white", edgecolors=colour(i), marker=marker(i),
                    linewidths=1.5, zorder=4)
         for x, yy, p in zip(secs, y, size, strict=True):
-            ax.annotate(f"{int(p)}", (x, yy), xytext=(5, 4), textcoords="offset points", fontsize=7)
+            sizes.append(ax.annotate(f"{int(p)}", (x, yy), xytext=(5, 4), textcoords="offset points", fontsize=7))
     caption = ("Each point is one packet size (labelled; 1 = one ray or pixel per packet, the finest). Error: "
                "the largest |relative error| of any PM's cycles, TThru or the latency against the study's "
                "smallest packet size, its reference.")
@@ -509,7 +511,8 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
            ylabel="TLM cycle error: max |relative error| vs. the finest packet",
            title="TLM timing error against host wall time, per packet size")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_below(ax)
+    untangle(fig, sizes, PARETO_OFFSETS)
     return save(fig, out, name, "TLM cycle error against host wall time", caption)
 
 
