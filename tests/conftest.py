@@ -66,3 +66,14 @@ def piped():
 def pipes(piped):
     """:func:`piped`, its path a :class:`~pathlib.Path`."""
     return lambda text: Path(piped(text))
+
+
+@pytest.fixture
+def nothing_known(monkeypatch):
+    """Each test finds out afresh which file systems exchange folders, and which a probe could not write
+    (tlm.storage_lock's memory of them: tests/test_storage_leftovers_h256.py, test_lock_probe_h527.py)."""
+    from tlm import storage_lock
+
+    monkeypatch.setattr(storage_lock, "_EXCHANGES", {})
+    monkeypatch.setattr(storage_lock, "_EXCHANGED_AT", {})
+    monkeypatch.setattr(storage_lock, "_UNWRITABLE", {})

@@ -16,15 +16,6 @@ from tlm import storage, storage_lock
 LONG = "r" * 250  # (an --out name of 250 bytes: within NAME_MAX, past it with the probe's suffix)
 
 
-@pytest.fixture
-def nothing_known(monkeypatch):
-    """Each test finds out afresh which file systems exchange, and which a probe could not write."""
-    monkeypatch.setattr(storage_lock, "_EXCHANGES", {})
-    monkeypatch.setattr(storage_lock, "_EXCHANGED_AT", {})
-    if hasattr(storage_lock, "_UNWRITABLE"):
-        monkeypatch.setattr(storage_lock, "_UNWRITABLE", {})
-
-
 def _exchanges_at_all(folder) -> bool:
     """Whether ``folder``'s file system exchanges, asked with a short name, nothing remembered."""
     storage_lock._EXCHANGES.clear()

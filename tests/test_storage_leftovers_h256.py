@@ -23,15 +23,6 @@ from tlm.storage import atomic_folder, folder_lock
 REPO = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture
-def nothing_known(monkeypatch):
-    """Each test finds out afresh which file systems exchange, and which a probe could not write."""
-    monkeypatch.setattr(storage_lock, "_EXCHANGES", {})
-    monkeypatch.setattr(storage_lock, "_EXCHANGED_AT", {})
-    if hasattr(storage_lock, "_UNWRITABLE"):
-        monkeypatch.setattr(storage_lock, "_UNWRITABLE", {})
-
-
 def test_nothing_is_swapped_in_between_the_question_and_the_write(tmp_path):
     """A concurrent sweep of the same point swapping its good folder in while a failed point asks whether the
     folder holds finished results (and then writes error.json beside them): the swap waits for the lock until
