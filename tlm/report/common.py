@@ -14,10 +14,10 @@ The report's figure files are set by :func:`figure_output` (``tlm report --forma
 laid-out figure (one draw per file, no second layout), so that the three files show one layout. Their text stays text:
 the PDF embeds its fonts as TrueType (``pdf.fonttype`` 42; matplotlib's default, Type 3 fonts, is flagged by some
 publishers' PDF checks), and the SVG keeps each label a ``<text>`` element (``svg.fonttype`` ``none``), editable and
-searchable, in the font the figure names (DejaVu Sans, with generic ``sans-serif`` after it): a viewer without that
-font draws the text in another, of other widths, where glyphs as paths (``path``) would look the same everywhere but
-could not be edited. Neither file records the time it was written, so a report written again from the same inputs
-writes the same PDF and SVG files, byte for byte.
+searchable, in the fonts the figure names (DejaVu Sans, then matplotlib's others, ``sans-serif`` last; a log axis's
+powers of ten DejaVu Sans alone): a viewer without DejaVu Sans draws the text in another, of other widths, where glyphs
+as paths (``path``) would look the same everywhere but could not be edited. Neither file records the time it was
+written, so a report written again from the same inputs writes the same PDF and SVG files, byte for byte.
 
 Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_``, ``-`` and ``.png``'s ``.``,
 unquoted in a shell, a URL and LaTeX's ``\\includegraphics``; one name is one figure in a report (of two figures
@@ -110,7 +110,7 @@ def bar_style(i: int) -> dict:
 
 def legend_below(ax, fontsize: float = 7, ncol: int = 1):
     """The legend of ``ax`` under its tick labels and x label, covering nothing (the layout shrinks the axes)."""
-    drop = 1.6 * ax.xaxis.get_major_ticks()[0].label1.get_size() + 1.3 * ax.xaxis.label.get_size() + 14  # (points)
+    drop = 1.6 * ax.xaxis.get_major_ticks(1)[0].label1.get_size() + 1.3 * ax.xaxis.label.get_size() + 14  # (points)
     return ax.legend(fontsize=fontsize, ncol=ncol, loc="upper center", bbox_to_anchor=(0.5, 0), borderaxespad=0.0,
                      bbox_transform=matplotlib.transforms.offset_copy(ax.transAxes, ax.figure, y=-drop, units="points"))
 

@@ -1,5 +1,6 @@
-"""How the report writes a number: one rule for its tables, its figures' labels and the sentences
-that quote them, so that a value reads alike wherever it is written (h545).
+"""How the report writes a number: one rule for its tables and its figures' labels, so that a value reads
+alike in both (h545). Not yet its sentences: the summary's, the peers' and the comparison's still quote a rate
+to three significant digits ("72.9 FPS" beside a table's 72.94; h549), a leftover.
 
 - A measured value (cycles, frame rates, seconds): :func:`sig`, to a count of significant digits
   (four in a table), its significant trailing zeros kept and no trailing point: ``6.410``,
@@ -20,13 +21,28 @@ written as the config file writes it (:func:`tlm.report.names.value_text`), so t
 from __future__ import annotations
 
 import math
+import numbers
 
 SMALL = 1e-3  # a measured value under this in size is written in scientific notation (1.230e-05)
 HUGE = 1e15  # a recorded value from this up too (its plain digits would be a row of zeros)
 
 
 def _number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool)
+    """A real number, numpy's too (``np.float32``, ``np.int64``: a value read from an array), not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and type(v).__name__ != "bool_"
+
+
+def _plain(v):
+    """``v`` (a :func:`_number`) as Python's int or float: numpy's ``repr`` is ``np.float64(6.41)``, and
+    ``np.float32``'s digits are not those the value was written with."""
+    if isinstance(v, numbers.Integral):
+        return int(v)
+    if isinstance(v, float):  # (float and np.float64)
+        return float(v)
+    try:  # (np.float32, np.float16: their str is the shortest text that reads back the same, 6.41)
+        return float(str(v))
+    except ValueError:
+        return float(v)
 
 
 def sig(v: float, digits: int = 4, zeros: bool = True) -> str:
@@ -36,13 +52,15 @@ def sig(v: float, digits: int = 4, zeros: bool = True) -> str:
     NaN and infinities as Python writes them, anything else as ``str`` writes it."""
     if not _number(v) or not math.isfinite(v):
         return str(v)
+    v = _plain(v)
     if v == 0:
         return "0"
     digits = max(1, int(digits))
-    exponent = int(f"{v:.{digits - 1}e}".partition("e")[2])  # (after rounding: 9999.7 is 1.000e+04)
-    if exponent >= digits - 1:
-        return f"{round(float(v), digits - 1 - exponent):,.0f}"
-    if abs(v) < SMALL:
+    mantissa, _, power = f"{v:.{digits - 1}e}".partition("e")  # (after rounding: 9999.7 is 1.000e+04)
+    exponent = int(power)
+    if exponent >= digits - 1:  # (its rounded digits and zeros: not a float's, 10**30 is not 1,000,...,019,884,...)
+        return f"{int(mantissa.replace('.', '')) * 10 ** (exponent - digits + 1):,}"
+    if 10.0 ** exponent < SMALL:  # (under SMALL once rounded: 0.00099996 is 0.001000, as 0.001 is)
         text = f"{v:#.{digits - 1}e}"
         mantissa, _, power = text.partition("e")
         return f"{_strip(mantissa, zeros)}e{power}"
@@ -61,8 +79,8 @@ def _strip(text: str, zeros: bool) -> str:
 def whole(n: int | float) -> str:
     """A count, exact and thousands separated: ``2,604``, ``44,778,358``; a float that is whole as an int
     (``5.0``: ``5``); anything else as :func:`exact` writes it."""
-    if _number(n) and math.isfinite(n) and float(n).is_integer():
-        return f"{int(n):,}"
+    if _number(n) and math.isfinite(n) and float(n).is_integer() and (isinstance(_plain(n), int) or abs(n) < HUGE):
+        return f"{int(_plain(n)):,}"  # (a float from HUGE up as exact writes it: its int's digits are not recorded)
     return exact(n)
 
 
@@ -73,6 +91,7 @@ def exact(v) -> str:
     ``str``."""
     if not _number(v) or not math.isfinite(v):
         return str(v)
+    v = _plain(v)
     if isinstance(v, int):
         return f"{v:,}"
     if v != 0 and not SMALL <= abs(v) < HUGE:
@@ -89,6 +108,7 @@ def printed(v) -> str:
     whole (``110``), a float to its own digits (``43.0``, ``3.037``), thousands separated; not a number: ``str``."""
     if not _number(v) or not math.isfinite(v):
         return str(v)
+    v = _plain(v)
     if isinstance(v, int):
         return f"{v:,}"
     text = exact(v)
