@@ -549,10 +549,10 @@ def _calibration_inputs(path: Path, leave_one_out: bool = False) -> dict[str, An
                          + (f" (a scene is a table's by its file, not its name: {'; '.join(named)})" if named else ""),
                          source=str(path), key="scenes")
     if len(scenes) < 2 + leave_one_out:
-        raise InputError(f"{quoted(scenes)}: one scene gives one RCast cell per PM, too few for the Traversal and "
+        raise InputError(f"{quoted(scenes)}: {'--leave-one-out fits all scenes but one, and ' if leave_one_out else ''}"
+                         "one scene gives one RCast cell per PM, too few for the Traversal and "
                          "Fragment PMs' two parameters each (scale, record_cycles): list at least "
-                         f"{'three' if leave_one_out else 'two'} of the thesis's scenes"
-                         f"{' (--leave-one-out fits all but one)' if leave_one_out else ''} "
+                         f"{'three' if leave_one_out else 'two'} of the thesis's scenes "
                          f"({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
     cfgs = {s: config_from_dict({**base, "scene": s, "mode": "rcast"}, str(path)) for s in scenes}
     programs = programs_for(cfgs[scenes[0]], folder)  # a bad instruction table fails before the renders

@@ -52,12 +52,15 @@ THESIS_SAMPLING = {"spp": (1, "eye rays per pixel"), "light_samples": (1, "light
 # calibrated model itself, which the comparison measures, not a setting of the thesis's)
 # The keys judged by setting_mismatches whose value the thesis itself gives (the help of each cites it: the BSP and
 # photon trees' floor(ln n) levels, §V; twenty times the triangle list's memory; 4 cache block pairs of 1024 words;
-# 12 cycles a page miss, 4 a flush; two images in flight; no final gathering; the static per-quadrant split).
+# 12 cycles a page miss, 4 a flush; two images in flight; no final gathering; the static per-quadrant split;
+# "Russian roulette method is used to eliminate photons", §III; the memory controller "swaps" the modules by
+# re-routing the top two address bits and copies blocks between them, §IV.B: arch.memory swap).
 # Every other key's value is configs/thesis.yaml's (or tlm's default there), which the thesis does not fix: a
 # mismatch of one says so, "(configs/thesis.yaml: 256; not in the thesis)"
 THESIS_FIXED = frozenset({"bsp.levels", "bsp.memory_factor", "photons.levels", "photons.leaf_photons",
                           "estimate.final_gather", "cache.pairs", "cache.block_words", "arch.images_in_flight",
-                          "arch.page_miss_cycles", "arch.flush_cycles", "arch.scheduler"})
+                          "arch.page_miss_cycles", "arch.flush_cycles", "arch.scheduler", "photons.russian_roulette",
+                          "arch.memory"})
 NOT_SETTING = frozenset({"scene", "mode", "resolution", "photons.count", "render.spp", "render.light_samples",
                          "arch.pipelines", "arch.clock_hz", "seed", "arch.programs"})
 

@@ -215,9 +215,11 @@ def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]
 
 def _fitted(run) -> frozenset[tuple[str, str]] | None:
     """The cells a run's instruction table was fitted to (:func:`~tlm.experiments.thesis_tables.fitted_cells` of
-    its ``arch.programs``; None: the packaged table's); none where that table can no longer be read."""
+    its ``arch.programs``; None: the packaged table's); where that table can no longer be read, every cell a
+    calibration may fit (:data:`~tlm.experiments.thesis_tables.CALIBRATED`): unknown, so no fitted cell passes
+    for a prediction."""
     from tlm.arch.costs import load_programs
-    from tlm.experiments.thesis_tables import fitted_cells
+    from tlm.experiments.thesis_tables import CALIBRATED, fitted_cells
 
     table = (run.config.get("arch") or {}).get("programs") if isinstance(run.config, dict) else None
     if table is None:
@@ -225,7 +227,7 @@ def _fitted(run) -> frozenset[tuple[str, str]] | None:
     try:
         return fitted_cells(load_programs(table).calibration)
     except (OSError, ValueError):  # (an InputError is a ValueError: a table moved or changed since the run)
-        return frozenset()
+        return frozenset((scene, m) for scene in THESIS for _, m in CALIBRATED)
 
 
 def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
