@@ -105,10 +105,6 @@ class Model:
     def __post_init__(self) -> None:
         self.cycle_end = CycleEnd(self.env)
 
-    def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
-        if self.trace is not None:
-            self.trace.slice(scope, name, start, end, **args)
-
     def module(self, pipe: int, slot: int, role: int) -> int:
         """The index of pipeline ``pipe``'s module ``role`` of image slot ``slot``."""
         return 2 * (pipe * self.arch.images_in_flight + slot) + role
