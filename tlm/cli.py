@@ -388,8 +388,9 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    def progress(it, params):
-        print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
+    def progress(it, params):  # (--no-progress: none of these lines; the fit's result lines stay)
+        if not args.no_progress:
+            print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
     if args.leave_one_out:  # (a dry run of each fit: no table written)
         if args.write is not None:

@@ -170,7 +170,7 @@ def calibrate_arguments(ca: argparse.ArgumentParser) -> None:
     ca.add_argument("--leave-one-out", action="store_true",
                     help="a held-out check, writing nothing: fit to all scenes but one, for each scene, and print the "
                     "left-out scene's fitted cells' |rel error| (median, max) beside the in-sample fit's")
-    no_progress(ca, NO_BAR)
+    no_progress(ca, "this command draws none, but drops the fit's iteration lines (its cells' and fit's lines stay)")
 
 
 def report_arguments(rp: argparse.ArgumentParser) -> None:

@@ -8,6 +8,7 @@ size is simulated, then :func:`print_granularity`)."""
 from __future__ import annotations
 
 import json
+import math
 import re
 import sys
 from collections import Counter
@@ -266,7 +267,8 @@ def fit_lines(stats: dict[str, dict]) -> list[str]:
         lines.append(f"  fit {pm}: {n} parameter{'s' if n > 1 else ''} on {s['cells']} cells, {dof} degree"
                      f"{'' if dof == 1 else 's'} of freedom; in-sample |rel error| median "
                      f"{s['median_abs_rel_error']:.1%}, max {s['max_abs_rel_error']:.1%}; " + ", ".join(params)
-                     + f"; condition number {s['condition_number']:.3g}")
+                     + "; condition number " + (f"{s['condition_number']:.3g}" if math.isfinite(s["condition_number"])
+                                                else "infinite (a singular fit: its parameters are not determined)"))
     return lines
 
 

@@ -81,6 +81,12 @@ def _g(v: float | None) -> str:
     return "none" if v is None else f"{v:.4g}"
 
 
+def _cond(v: float) -> str:
+    """A condition number as YAML reads it back as a number: a singular fit's infinite one as ``.inf`` (``inf``
+    is YAML's string 'inf')."""
+    return ".inf" if np.isinf(v) else ".nan" if np.isnan(v) else f"{v:.4g}"
+
+
 def summary(errors: list[float]) -> dict:
     a = np.abs(np.asarray(errors, dtype=float))
     return {"median": float(np.median(a)), "max": float(np.max(a)), "cells": len(a)}
@@ -92,7 +98,7 @@ def _fit_block(stats: dict[str, dict]) -> str:
         se = ", ".join(f"{p.split('.', 1)[1]}: {_g(v)}" for p, v in s["standard_errors"].items())
         bound = ", ".join(p.split(".", 1)[1] for p in s["on_bound"])
         rows.append(f"    {pm}: {{median: {s['median_abs_rel_error']:.4g}, max: {s['max_abs_rel_error']:.4g}, "
-                    f"dof: {s['dof']}, se: {{{se}}}, on_bound: [{bound}], cond: {s['condition_number']:.4g}}}")
+                    f"dof: {s['dof']}, se: {{{se}}}, on_bound: [{bound}], cond: {_cond(s['condition_number'])}}}")
     return ("  fit:  # per PM: in-sample |rel error| median and max, degrees of freedom, standard errors, "
             "parameters on their bound, condition number\n" + "\n".join(rows) + "\n")
 
@@ -202,7 +208,8 @@ def held_out(inputs: dict, iterations: int = 4, progress=None) -> dict:
     out: dict[str, Any] = {"scenes": {}}
     inside, held = [], []
     for left in scenes:
-        tell = None if progress is None else (lambda it, params, left=left: progress(left, it, params))
+        # (the left-out scene by its table's name, as the result lines and ``scenes`` name it: thesis/ring is ring)
+        tell = None if progress is None else (lambda it, params, left=tables[left]: progress(left, it, params))
         programs, _, _, _ = fit(inputs, [s for s in scenes if s != left], iterations, tell)
         fn, cfg = fns[left]
         sim = simulate(fn, programs, cfg.arch)

@@ -529,7 +529,8 @@ def leave_one_out(path: Path, iterations: int = 4, progress=None) -> dict:
     cells under it (``scenes``: scene -> ``parameters``, ``cells``: metric -> ``thesis``, ``ours``,
     ``rel_error``, ``in_sample``, the fit to every scene's); ``held_out`` and ``in_sample``: the median and
     max |relative error| of those cells, and of the fit to every scene. It needs three scenes at least (a fit
-    to one is refused, :func:`calibrate`). ``progress``: called ``(scene left out, iteration, parameters)``."""
+    to one is refused, :func:`calibrate`). ``progress``: called ``(scene left out, iteration, parameters)``,
+    the scene by its table's name, as ``scenes`` keys it (``ring``, not ``thesis/ring``)."""
     return held_out(_calibration_inputs(Path(path), leave_one_out=True), iterations, progress)
 
 
