@@ -30,11 +30,23 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
     """The experiment file that ``tlm COMMAND REF`` runs: ``ref`` when it exists, else the
     built-in experiment named ``ref``; an :class:`InputError` otherwise (a path that does
     not exist names the built-in experiment of its file name, which is not taken in its
-    place; a name that is none lists them)."""
+    place; a name that is none lists them).
+
+    ``-``: the command line's (within :func:`flags_kept`) is refused, whether or not a file of that name is here (the
+    standard input's, or a file's? ``/dev/stdin`` and ``./-`` say which); a Python caller's, which names no standard
+    input, is the file ``-`` as any other name is a path (``"-"``, ``"./-"`` and ``Path("-")`` alike: the file
+    :func:`tlm.load_config` reads), an :class:`InputError` in the API's words where none is here."""
     from tlm.builtin import experiment_path as find
     from tlm.scenes.loader import list_scenes  # (what tlm.api.list_scenes returns)
 
-    return find(os.fspath(ref), command, list_scenes())
+    given = os.fspath(ref)
+    if given == "-" and not flags_are_kept():  # (a caller in Python: a file's name, no standard input's)
+        if Path(given).exists():
+            return Path(given)
+        how = "pass the config as a mapping" if command in ("run", "reference") else "a built-in experiment's name"
+        raise InputError(f"no file of that name here (the Python API reads no standard input: give a file's path, "
+                         f"or {how})", source=given)
+    return find(given, command, list_scenes())
 
 
 def shown(value: Any) -> str:
@@ -420,7 +432,8 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if found is None or found[0] in takes:
         return
     kind, keys = found
-    ref, save = shell_word(str(path)), ""  # (a command to run as printed: a path with a space quoted)
+    # (a command to run as printed: a path with a space quoted, one that starts with '-' as ./-, no flag to argparse)
+    ref, save = shell_word(f"./{path}" if str(path).startswith("-") else str(path)), ""
     try:
         if Path(path).resolve().parent == configs_dir().resolve() and Path(path).stem in list_experiments():
             ref = Path(path).stem

@@ -102,6 +102,8 @@ class Entry:
     # from frames of the same scene, resolution and mode (tlm.cache_look.tell_apart: tlm cache list's; else none)
     settings: dict = field(default_factory=dict, repr=False, compare=False)
     differs: dict = field(default_factory=dict, compare=False)
+    # (of differs, as tlm cache list's table shows it: a source by its shortest distinct tail; --json: differs whole)
+    brief: dict = field(default_factory=dict, repr=False, compare=False)
     # (each file's :func:`_fingerprint` as the scan saw it: :func:`remove` removes a file only while it is
     # still that one)
     seen: dict[Path, dict[str, tuple[int, ...]]] = field(default_factory=dict, repr=False, compare=False)
@@ -115,7 +117,8 @@ class Entry:
         a = self.about
         words = [self.kind, a.get("scene"), "x".join(map(str, a["resolution"])) if "resolution" in a else None,
                  a.get("mode"), *(f"{a[k]} {k}" for k in ("photons", "rounds", "spp") if k in a),
-                 f"[{' '.join(f'{k}={v}' for k, v in self.differs.items())}]" if self.differs else None]
+                 f"[{' '.join(f'{k}={self.brief.get(k, v)}' for k, v in self.differs.items())}]" if self.differs
+                 else None]
         return " ".join(str(w) for w in words if w) or "-"
 
     def row(self) -> dict:

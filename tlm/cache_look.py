@@ -108,8 +108,24 @@ def tell_apart(entries) -> None:
                 n = next((n for n in range(8, 65) if len({e.name[:n] for e in alike}) == len(alike)), None)
                 for e in alike:
                     e.differs["other"] = e.name[:n]
-        for e in group:  # (in the order of frame_settings, other last)
+        short = _shortest({e.differs["source"] for e in group if isinstance(e.differs.get("source"), str)})
+        for e in group:  # (in the order of frame_settings, other last; a source shown by its shortest distinct tail)
             e.differs = {k: e.differs[k] for k in sorted(e.differs, key=lambda k: _ORDER.get(k, len(_ORDER)))}
+            e.brief = {"source": short[e.differs["source"]]} if e.differs.get("source") in short else {}
+
+
+def _shortest(sources: set) -> dict:
+    """Each of the paths ``sources`` (a group's scene files, which differ) as ``tlm cache list`` shows it: its
+    fewest trailing parts that no other one's as many parts are (its file name where that is its own;
+    ``a/room.yaml`` beside ``b/room.yaml``), and the whole path where one is the other's tail. No two are shown
+    alike: a tail of k parts is no other one's of k, nor one of other parts (k - 1 separators)."""
+    parts = {s: Path(s).parts for s in sources}
+    out = {}
+    for s, mine in parts.items():
+        k = next((k for k in range(1, len(mine)) if all(p[-k:] != mine[-k:] for o, p in parts.items() if o != s)),
+                 len(mine))
+        out[s] = str(Path(*mine[-k:])) if mine else s
+    return out
 
 
 def _alike(group: list, recorded: bool) -> list[list]:
