@@ -38,7 +38,7 @@ def test_points_within_one_percent_of_the_best_tie_with_it():
     fps = {(8, 50): 102.03, (8, 2): 101.84, (2, 50): 40.0, (2, 2): 40.5}
     text = _finding({"arch.pipelines": [2, 8], "arch.swap_cycles": [2, 50]},
                     [{"arch.pipelines": p, "arch.swap_cycles": s, "fps": fps[p, s]} for p in (2, 8) for s in (2, 50)])
-    assert text.endswith("2 points tie within 1% as the best, at 101.8 to 102 FPS: arch.pipelines = 8, "
+    assert text.endswith("2 points tie within 1% as the best, at 101.8 to 102.0 FPS: arch.pipelines = 8, "
                          "any arch.swap_cycles."), text
     assert "the best point is" not in text and "arch.swap_cycles = 50" not in text
     rows = [{"bsp.levels": b, "arch.fifo_depth": f, "fps": 411.0 if b == 7 else 300.0} for b in (5, 7) for f in (4, 8)]
@@ -61,7 +61,7 @@ def test_many_near_points_not_of_every_combination_say_how_many_of_them():
                          "any arch.swap_cycles (8 of the 10 combinations of these values)."), text
     few = _finding({"a": [1, 2], "b": [1, 2]}, [{"a": 1, "b": 1, "fps": 50.0}, {"a": 1, "b": 2, "fps": 10.0},
                                                {"a": 2, "b": 1, "fps": 10.0}, {"a": 2, "b": 2, "fps": 49.8}])
-    assert few.endswith("2 points tie within 1% as the best, at 49.8 to 50 FPS: (a = 1, b = 1) at 50 FPS and "
+    assert few.endswith("2 points tie within 1% as the best, at 49.8 to 50.0 FPS: (a = 1, b = 1) at 50 FPS and "
                         "(a = 2, b = 2) at 49.8 FPS."), few
 
 

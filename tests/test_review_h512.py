@@ -42,7 +42,7 @@ def test_the_points_the_least_error_keeps_are_said_apart():
 def test_the_point_of_the_lowest_error_among_the_near_tied_is_said_as_the_range_says_it():
     """Not every near point measured its error: the error does not decide, and the lowest is named after."""
     text = _finding(GRID, _rows({1: (102.03, None), 50: (101.84, 0.01), 100: (50.0, 0.05), 2: (40.0, 0.02)}))
-    assert text.endswith("2 points tie within 1% as the fastest, at 101.8 to 102 FPS: arch.swap_cycles = 1 or 50; "
+    assert text.endswith("2 points tie within 1% as the fastest, at 101.8 to 102.0 FPS: arch.swap_cycles = 1 or 50; "
                          "the point of the lowest image error (relative MSE 0.01) is arch.swap_cycles = 50 at "
                          "101.8 FPS."), text
     far = _finding(GRID, _rows({1: (102.03, 0.05), 2: (101.84, 0.03), 50: (12.3456, 0.01), 100: (40.0, 0.05)}))
@@ -56,7 +56,7 @@ def test_a_factor_that_moves_the_frame_rate_less_than_the_tie_has_no_best_value(
     assert "its best value" not in text and "1.00x" not in text, text
     assert ("arch.swap_cycles moves the frame rate most, by 0.19% between its value of the highest mean (2) and of "
             "the lowest (50), within 1% (a tie, no best value, as for points within 1% of the best), averaged over "
-            "the other factors; 2 points tie within 1% as the best, at 101.8 to 102 FPS: any arch.swap_cycles.") \
+            "the other factors; 2 points tie within 1% as the best, at 101.8 to 102.0 FPS: any arch.swap_cycles.") \
         in text, text
     apart = _finding({"arch.swap_cycles": [2, 50]}, [{"arch.swap_cycles": 2, "fps": 100.0},
                                                       {"arch.swap_cycles": 50, "fps": 98.9}])  # (1.1%: ordered)

@@ -264,7 +264,7 @@ def test_the_per_item_table_writes_each_column_in_one_notation():
     html = per_item_html("th", items)
     body = [re.findall(r"<td>(.*?)</td>", r) for r in re.findall(r"<tr><th>s\d/rcast</th>(.*?)</tr>", html)]
     vert = [c for r in body for c in r[4].replace("(", "").replace(")", "").split()]
-    assert vert == ["345.6", "345.6", "12346", "12346"]
+    assert vert == ["345.6", "345.6", "12,350", "12,350"]  # (4 significant digits, separated: h545)
     assert [r[5] for r in body] == ["5e-02", "5.03e-05"]
     for i in range(len(body[0])):
         assert _one_notation([c for r in body for c in r[i].replace("(", "").replace(")", "").split()])

@@ -177,7 +177,7 @@ def test_a_sweep_finding_says_a_tie_and_agrees_with_itself():
     (text,) = sweep_findings(Inputs([], sweeps=[_sweep({"arch.pipelines": [1, 2, 4]}, fps.get)]))
     assert text == ("<b>Sweep sw</b> (3 of 3 points ok): arch.pipelines moves the frame rate most, 1.13x between its "
                     "best values (2 and 4, tied) and its worst (1), averaged over the other factors; the best points, "
-                    "tied at 1.59e+03 FPS, are arch.pipelines = 2 and arch.pipelines = 4.")
+                    "tied at 1,590 FPS, are arch.pipelines = 2 and arch.pipelines = 4.")
     # two factors: 3 and 4 tie for the best value; six points tie at the best frame rate, four of them named
     (text,) = sweep_findings(Inputs([], sweeps=[_sweep({"a": [1, 2, 3, 4], "b": [8, 16, 32, 64]},
                                                        lambda a, b: 10.0 * min(a, 3) * (1 + (b > 8)))]))
